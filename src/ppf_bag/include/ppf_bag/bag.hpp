@@ -97,7 +97,7 @@ class Reader {
 
   const BagInfo& Info() const;
   // Only messages on these topics are returned by Next(); empty = all topics. Unknown topic
-  // names throw. Takes effect for the next Next() (iteration restarts at the current position).
+  // names throw. Rewinds to the last Seek() position (the start of the bag if never sought).
   void SetTopicFilter(std::vector<std::string> topics);
   // Next message in timestamp order across all topics and files (ties: storage order).
   // Returns false at the end of the bag.

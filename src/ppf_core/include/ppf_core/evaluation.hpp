@@ -1,0 +1,83 @@
+// Trajectory evaluation the way evo computes it (evo_ape / evo_rpe, translation part):
+//   1. associate: for each reference stamp the nearest estimate stamp (after adding `offset` to
+//      the estimate stamps), kept if |dt| <= max_diff (default 0.01 s);
+//   2. align (optional): Umeyama least squares of the estimate positions onto the reference,
+//      SE(3) or Sim(3) (with scale), or none;
+//   3. APE: e_i = |p_ref_i - p_est_aligned_i|;  RPE over pairs (i, j):
+//      E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j), e = |trans(E)|; pairs every `delta` frames
+//      (i = 0, delta, 2 delta, ...), or by travelled distance `delta` metres along the reference;
+//   4. stats: rmse, mean, median, std (population), min, max, sse.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace ppf {
+
+struct StampedPose {
+  double stamp_s = 0.0;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  // T_world_body
+};
+using Trajectory = std::vector<StampedPose>;
+
+// TUM: "stamp tx ty tz qx qy qz qw" per line, '#' comments. Returns false and sets *error on
+// a malformed line (line number included).
+bool ReadTum(const std::string& path, Trajectory* traj, std::string* error);
+bool ParseTum(const std::string& text, Trajectory* traj, std::string* error);
+bool WriteTum(const std::string& path, const Trajectory& traj);
+std::string FormatTumLine(const StampedPose& pose);
+
+// KITTI: 12 numbers per line (row-major 3x4). No stamps in the format: stamp = line index unless
+// `stamps` (one per pose) is given.
+bool ReadKitti(const std::string& path, Trajectory* traj, std::string* error);
+bool ParseKitti(const std::string& text, Trajectory* traj, std::string* error);
+bool WriteKitti(const std::string& path, const Trajectory& traj);
+
+enum class Alignment { kNone, kSE3, kSim3 };
+
+struct ErrorStats {
+  size_t count = 0;
+  double rmse = 0, mean = 0, median = 0, std = 0, min = 0, max = 0, sse = 0;
+};
+ErrorStats ComputeStats(const std::vector<double>& errors);
+
+// Indices (ref, est) of associated poses; ref order, evo's nearest-stamp rule.
+std::vector<std::pair<size_t, size_t>> AssociateByStamp(const Trajectory& ref,
+                                                        const Trajectory& est, double max_diff,
+                                                        double offset);
+
+// Umeyama: the similarity (s, R, t) minimising sum |dst_i - (s R src_i + t)|^2. with_scale=false
+// forces s = 1. Returns false for fewer than 3 points or a degenerate configuration.
+bool Umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+             bool with_scale, Eigen::Matrix3d* R, Eigen::Vector3d* t, double* scale);
+
+struct EvalOptions {
+  double max_diff = 0.01;
+  double offset = 0.0;
+  Alignment align = Alignment::kSE3;
+  // RPE only:
+  double delta = 1.0;
+  bool delta_in_meters = false;  // false: delta frames (integer >= 1)
+};
+
+struct EvalResult {
+  bool ok = false;
+  std::string error;
+  size_t matched = 0;
+  double scale = 1.0;  // Sim(3) scale applied to the estimate
+  Eigen::Isometry3d T_ref_est = Eigen::Isometry3d::Identity();  // alignment (without scale)
+  std::vector<double> errors;
+  ErrorStats stats;
+};
+
+EvalResult ComputeApe(const Trajectory& ref, const Trajectory& est, const EvalOptions& options);
+EvalResult ComputeRpe(const Trajectory& ref, const Trajectory& est, const EvalOptions& options);
+
+// Length of the path through the positions (metres).
+double PathLength(const Trajectory& traj);
+
+}  // namespace ppf

@@ -1,0 +1,76 @@
+// Filter state and IMU propagation (paper Eqs. 3-7, midpoint integration) with error-state
+// covariance propagation.
+//
+// State x = (R_world_imu, p_world_imu, v_world, b_gyro, b_acc, g_world) on SO(3) x R^15.
+// Error state (18): [dtheta(0..2), dp(3..5), dv(6..8), dbg(9..11), dba(12..14), dg(15..17)] with
+// R = R_hat Exp(dtheta) (body frame) and additive errors for the rest.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "ppf_core/imu_sample.hpp"
+
+namespace ppf {
+
+constexpr int kStateDim = 18;
+using StateCov = Eigen::Matrix<double, kStateDim, kStateDim>;
+enum StateIndex { kRot = 0, kPos = 3, kVel = 6, kBg = 9, kBa = 12, kGrav = 15 };
+
+struct NavState {
+  double stamp_s = 0.0;
+  Eigen::Matrix3d R_world_imu = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d p_world_imu = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_world = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();
+  Eigen::Vector3d acc_bias = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gravity_world = Eigen::Vector3d(0, 0, -9.80665);
+  StateCov P = StateCov::Identity() * 1e-4;
+
+  Eigen::Isometry3d T_world_imu() const {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = R_world_imu;
+    T.translation() = p_world_imu;
+    return T;
+  }
+};
+
+// Continuous-time noise densities (white noise: sigma^2 * dt enters the covariance per step).
+struct ImuNoise {
+  double gyro = 0.01;        // rad/s/sqrt(Hz)
+  double acc = 0.1;          // m/s^2/sqrt(Hz)
+  double gyro_bias = 1e-4;   // rad/s^2/sqrt(Hz) random walk
+  double acc_bias = 1e-3;    // m/s^3/sqrt(Hz) random walk
+};
+
+// Pose of the IMU at an integration knot, plus the constant (bias-corrected) body rate and world
+// acceleration of the segment that starts there: enough to evaluate the pose at any time inside.
+struct ImuKnot {
+  double t = 0.0;
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v = Eigen::Vector3d::Zero();
+  Eigen::Vector3d omega = Eigen::Vector3d::Zero();      // body, bias corrected
+  Eigen::Vector3d acc_world = Eigen::Vector3d::Zero();  // incl. gravity
+};
+
+// The propagated IMU trajectory over one scan; PoseAt() extrapolates outside [front, back].
+struct PoseTrace {
+  std::vector<ImuKnot> knots;
+  Eigen::Isometry3d PoseAt(double t) const;
+};
+
+// Raw sample interpolated linearly at time t (clamped to the first/last sample).
+ImuSample InterpolateImu(const std::vector<ImuSample>& samples, double t);
+
+// Propagates *state from state->stamp_s to t_end using `samples` (sorted by time; should bracket
+// the interval; outside it the nearest sample is held). acc_scale multiplies raw accelerations.
+// Appends knots to *trace (if non-null), the first at the start time. Midpoint rule per segment:
+//   w = (w_k + w_k+1)/2 - bg, R_k+1 = R_k Exp(w dt),
+//   a = (R_k (a_k - ba) + R_k+1 (a_k+1 - ba))/2 + g, p += v dt + a dt^2/2, v += a dt.
+void PropagateImu(const std::vector<ImuSample>& samples, double t_end, double acc_scale,
+                  const ImuNoise& noise, NavState* state, PoseTrace* trace);
+
+}  // namespace ppf

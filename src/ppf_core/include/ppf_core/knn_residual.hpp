@@ -1,0 +1,42 @@
+// kNN point-to-plane residuals against the voxel map (the Faster-LIO style registration).
+// For every kScattered point: k nearest map points; least-squares plane through them (PCA);
+// accepted only if all k lie within plane_threshold of the plane (a flat patch); then the row
+// r = n . (T_world_lidar p) + d, gated by |r| < max_residual. OpenMP-parallel over points.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "ppf_core/residual_provider.hpp"
+#include "ppf_core/voxel_map.hpp"
+
+namespace ppf {
+
+struct KnnOptions {
+  int k = 5;                          // neighbours per point
+  double max_neighbor_distance = 1.0; // metres; farther neighbours do not count
+  double plane_threshold = 0.1;       // metres; every neighbour within this of the fitted plane
+  double max_residual = 0.5;          // metres; larger residuals are treated as outliers
+  int num_threads = 0;                // 0 = OpenMP default
+};
+
+// Least-squares plane n.x + d = 0 through `pts` (>= 3). Returns false if degenerate or if a point
+// is farther than `threshold` from the plane.
+bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double threshold, Eigen::Vector3d* n,
+              double* d);
+
+class KnnResidualProvider : public ResidualProvider {
+ public:
+  explicit KnnResidualProvider(const KnnOptions& options = KnnOptions()) : options_(options) {}
+  std::string Name() const override { return "knn"; }
+  void BeginScan(const ScanFrame& frame) override;
+  void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
+                   std::vector<PointPlaneRow>* rows) override;
+
+ private:
+  KnnOptions options_;
+  const ScanFrame* frame_ = nullptr;
+  std::vector<size_t> indices_;  // kScattered points of the frame
+};
+
+}  // namespace ppf

@@ -1,0 +1,178 @@
+// LioPpf: the LiDAR-inertial odometry facade. Middleware free: feed ImuSample and CloudView, get
+// one ScanResult per scan.
+//
+// Usage:
+//   ppf::Config config;                  // or ppf::LoadConfigYaml("config/hdl64.yaml", ...)
+//   ppf::LioPpf lio(config);
+//   lio.AddImu(imu);                     // any order relative to scans, each stream in time order
+//   lio.AddScan(cloud);                  // decoded at once: the view may be released afterwards
+//   for (const ppf::ScanResult& r : lio.Process()) { ... }   // scans whose IMU coverage is complete
+//   lio.Process(/*flush=*/true);         // at the end: process the rest (IMU extrapolated)
+//
+// Pipeline per scan (timings in ScanResult::timings):
+//   preprocess  decode layout and per-point time (time_field.hpp), drop NaN / out-of-range points
+//   deskew      propagate the IMU to the scan end (midpoint, imu_propagation.hpp) and move every
+//               point to the LiDAR pose at the scan END with its own time (deskew.hpp)
+//   downsample  voxel grid (Config::scan_voxel_size, 0.5 m)
+//   ppf         ScanSplitter::Split labels points kSkeleton / kScattered / kDiscarded (kPpf only)
+//   residuals   + update: IEKF (iekf.hpp); every iteration each ResidualProvider returns rows
+//   map insert  points labelled kScattered ("map points") go into the kNN VoxelMap
+//
+// EXTENSION POINT (residual_provider.hpp): in Mode::kPpf the plane pre-fitter is installed with
+// SetScanSplitter() and its skeleton residuals with AddResidualProvider(). The built-in kNN provider
+// always handles the kScattered points. If kPpf is configured but no splitter is installed the
+// facade runs as kKnn and says so in ScanResult::reason.
+//
+// Initialization (imu_init.hpp): needs Config::init.duration_s (1 s) of static IMU data; scans
+// before that return Status::kInitializing. Motion during that window restarts the collection.
+// The first scan after initialization builds the map (Status::kOk, reason "map initialized").
+//
+// Time glitches: an IMU sample or scan older than the previous one (bag loop), or an IMU gap
+// longer than max_imu_gap_s, resets the filter and the map (Status::kReset with the reason) and
+// initialization starts over. Malformed clouds return Status::kRejected and change nothing.
+#pragma once
+
+#include <cstddef>
+#include <deque>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "ppf_core/cloud_view.hpp"
+#include "ppf_core/iekf.hpp"
+#include "ppf_core/imu_init.hpp"
+#include "ppf_core/imu_propagation.hpp"
+#include "ppf_core/imu_sample.hpp"
+#include "ppf_core/knn_residual.hpp"
+#include "ppf_core/log.hpp"
+#include "ppf_core/residual_provider.hpp"
+#include "ppf_core/time_field.hpp"
+#include "ppf_core/voxel_map.hpp"
+
+namespace ppf {
+
+enum class Mode { kKnn, kPpf };
+
+enum class Status {
+  kOk,            // pose estimated from this scan
+  kInitializing,  // IMU initialization not finished (reason says why); no pose yet
+  kDegenerate,    // pose estimated, but some directions are unconstrained (IMU kept there)
+  kReset,         // a time glitch reset the filter and the map; initialization restarts
+  kRejected,      // malformed cloud (reason says what); nothing changed
+};
+const char* StatusName(Status status);
+
+// Every field is optional in YAML (config_yaml.hpp) and documented with its default here.
+struct Config {
+  Mode mode = Mode::kKnn;
+
+  // LiDAR -> IMU extrinsic: p_imu = T_imu_lidar * p_lidar.
+  Eigen::Isometry3d T_imu_lidar = Eigen::Isometry3d::Identity();
+
+  // --- preprocess ------------------------------------------------------------------------------
+  double min_range = 0.5;    // metres; closer points (the vehicle itself) are dropped
+  double max_range = 150.0;  // metres
+  int point_stride = 1;      // keep every n-th point (1 = all)
+  TimeFieldOptions time;     // per-point time conventions (time_field.hpp)
+
+  // --- downsample and map ------------------------------------------------------------------------
+  double scan_voxel_size = 0.5;  // metres, voxel grid applied to the de-skewed scan
+  VoxelMapOptions map;           // kNN map (voxel_map.hpp): 0.5 m voxels, LRU bound
+  double map_radius = 150.0;     // voxels farther than this from the sensor are dropped; 0 = off
+
+  // --- IMU -------------------------------------------------------------------------------------
+  ImuInitOptions init;  // static initialization (imu_init.hpp)
+  ImuNoise noise;       // continuous-time noise densities (imu_propagation.hpp)
+  double max_imu_gap_s = 0.5;  // longer gaps between IMU samples reset the filter
+
+  // --- registration ----------------------------------------------------------------------------
+  IekfOptions iekf;  // max 4 iterations, degeneracy thresholds (iekf.hpp)
+  KnnOptions knn;    // 5 neighbours, planes valid within 0.1 m (knn_residual.hpp)
+
+  int num_threads = 0;  // OpenMP threads (0 = OpenMP default); applies to iekf and knn
+  LogCallback log;      // receives all messages; nullptr = silent
+};
+
+// Clamps nonsensical values to safe ones; returns one note per fix (empty if valid).
+std::vector<std::string> ValidateConfig(Config* config);
+
+struct StageTimings {  // milliseconds
+  double preprocess = 0, deskew = 0, downsample = 0, ppf = 0, residuals = 0, update = 0,
+         map_insert = 0, total = 0;
+};
+
+struct ScanResult {
+  double stamp_s = 0.0;        // time of the pose: the scan end
+  double scan_begin_s = 0.0;   // earliest point time
+  Status status = Status::kInitializing;
+  std::string reason;          // human readable: why not kOk, notes (e.g. time field fallback)
+  bool pose_valid = false;     // false for kInitializing / kRejected / kReset
+
+  Eigen::Isometry3d T_world_imu = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_world_lidar = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d velocity_world = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();
+  Eigen::Vector3d acc_bias = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gravity_world = Eigen::Vector3d::Zero();
+  StateCov covariance = StateCov::Zero();  // error-state order of imu_propagation.hpp
+  Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();  // [rot, pos]
+
+  StageTimings timings;
+  size_t map_size = 0;            // points in the kNN map after insertion
+
+  size_t input_points = 0;        // width * height
+  size_t dropped_nan = 0;
+  size_t valid_points = 0;        // after NaN and range filtering
+  size_t downsampled_points = 0;
+  size_t skeleton_points = 0;     // labelled kSkeleton
+  size_t scattered_points = 0;    // labelled kScattered
+  size_t discarded_points = 0;    // labelled kDiscarded
+  size_t knn_residuals = 0;       // rows of the kNN provider (last iteration)
+  size_t skeleton_residuals = 0;  // rows of other providers (last iteration)
+  size_t map_inserted = 0;        // points offered to the map
+
+  int iterations = 0;
+  bool converged = false;
+  Eigen::Vector3d eig_rotation = Eigen::Vector3d::Zero();     // J^T J, ascending
+  Eigen::Vector3d eig_translation = Eigen::Vector3d::Zero();  // J^T J, ascending
+};
+
+class LioPpf {
+ public:
+  explicit LioPpf(const Config& config = Config());
+  ~LioPpf();
+  LioPpf(const LioPpf&) = delete;
+  LioPpf& operator=(const LioPpf&) = delete;
+
+  void AddImu(const ImuSample& sample);
+
+  // Decodes the cloud now (the view need not outlive the call) and queues it. A malformed cloud
+  // is queued as a kRejected result so results stay in input order.
+  void AddScan(const CloudView& cloud);
+
+  // Processes queued scans whose IMU coverage reaches the scan end (all of them if flush).
+  std::vector<ScanResult> Process(bool flush = false);
+
+  // AddScan + Process(true), returning the result of this scan (convenience for tests/tools).
+  ScanResult ProcessScan(const CloudView& cloud);
+
+  // Extension points (kPpf): see residual_provider.hpp.
+  void SetScanSplitter(std::shared_ptr<ScanSplitter> splitter);
+  void AddResidualProvider(std::shared_ptr<ResidualProvider> provider);
+
+  void Reset();  // forget state, map and queues; initialization starts over
+
+  const Config& config() const;
+  const VoxelMap& map() const;
+  const TimeFieldInfo& time_field_info() const;
+  bool initialized() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ppf

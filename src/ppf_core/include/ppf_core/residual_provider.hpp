@@ -1,0 +1,76 @@
+// Extension points of the registration (see lio_ppf.hpp for the pipeline they plug into).
+//
+//   AddScan -> decode -> IMU propagate -> de-skew -> downsample
+//           -> ScanSplitter::Split         (labels: skeleton / scattered / discarded)
+//           -> IEKF: every iteration, every ResidualProvider::ComputeRows(current T_world_lidar)
+//           -> ScanSplitter::Finish, ResidualProvider::EndScan   (with the converged pose)
+//           -> insert points labelled kScattered into the kNN voxel map
+//
+// kKnn mode: no splitter runs, every point is kScattered, the built-in kNN provider makes all rows.
+// kPpf mode: the plane pre-fitter is the ScanSplitter and a skeleton ResidualProvider; the kNN
+// provider still serves the kScattered points, and only those enter the map.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace ppf {
+
+class VoxelMap;
+
+enum class PointLabel : uint8_t {
+  kScattered = 0,  // Theta: kNN residual, inserted into the map
+  kSkeleton = 1,   // Omega: residual against pre-fitted planes, not inserted
+  kDiscarded = 2,  // semi-inliers of the sandwich layer: no residual, not inserted
+};
+
+// One point-to-plane residual row: r = n_world . (T_world_lidar * point_lidar) + offset.
+struct PointPlaneRow {
+  Eigen::Vector3d point_lidar = Eigen::Vector3d::Zero();  // de-skewed, LiDAR frame at scan end
+  Eigen::Vector3d normal_world = Eigen::Vector3d::UnitZ();  // unit length
+  double offset = 0.0;                                      // plane: n . x + offset = 0
+  double weight = 1.0;  // scales the information of the row (1 = laser_point_std noise)
+};
+
+// The downsampled, de-skewed scan as the registration sees it.
+struct ScanFrame {
+  double stamp_s = 0.0;                     // scan end = time of the filter state
+  std::vector<Eigen::Vector3f> points_lidar;  // de-skewed to scan end, downsampled, LiDAR frame
+  std::vector<PointLabel> labels;           // same size as points_lidar; default kScattered
+  Eigen::Isometry3d T_world_lidar_predicted = Eigen::Isometry3d::Identity();  // IMU prediction
+  Eigen::Isometry3d T_imu_lidar = Eigen::Isometry3d::Identity();
+  const VoxelMap* map = nullptr;            // the kNN map before this scan's insertion
+};
+
+// Splits the scan before the update. Runs once per scan (kPpf mode only).
+class ScanSplitter {
+ public:
+  virtual ~ScanSplitter() = default;
+  virtual std::string Name() const = 0;
+  // Set frame->labels (pre-filled with kScattered). Must not resize points_lidar.
+  virtual void Split(ScanFrame* frame) = 0;
+  // Called after the update with the converged pose (e.g. move this scan's planes to world).
+  virtual void Finish(const ScanFrame& /*frame*/, const Eigen::Isometry3d& /*T_world_lidar*/) {}
+  virtual void Reset() {}
+};
+
+// Produces point-to-plane rows for the IEKF. ComputeRows is called once per iteration with the
+// current estimate, so matches are re-established every iteration; it may use OpenMP internally.
+class ResidualProvider {
+ public:
+  virtual ~ResidualProvider() = default;
+  virtual std::string Name() const = 0;
+  // Called once per scan before the first iteration; `frame` outlives the scan's update.
+  virtual void BeginScan(const ScanFrame& frame) = 0;
+  // Append this provider's rows for the pose estimate T_world_lidar.
+  virtual void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
+                           std::vector<PointPlaneRow>* rows) = 0;
+  virtual void EndScan(const Eigen::Isometry3d& /*T_world_lidar*/) {}
+  virtual void Reset() {}
+};
+
+}  // namespace ppf

@@ -1,0 +1,104 @@
+// Decoding of a CloudView into points with an absolute time each, and detection of how the
+// driver encodes per-point time.
+//
+// Conventions seen in the wild (all handled, each covered by test_time_field.cpp):
+//   field name : "t" (Ouster), "time" (Velodyne), "timestamp" (Hesai), "time_stamp",
+//                "offset_time" (Livox)
+//   type       : uint32 -> nanoseconds (Ouster, Livox); float32 -> seconds (Velodyne);
+//                float64 -> seconds, often absolute epoch time (Hesai); uint64 -> nanoseconds
+//   reference  : relative to the header stamp, or absolute. Detected by magnitude: values within
+//                1 s of a header stamp that is itself > 10 s are absolute; otherwise relative.
+//   header     : stamp at scan start (default) or at scan end. Relative times <= 0 (ending at 0)
+//                mean "relative to the end"; non-negative relative times cannot tell, so
+//                TimeFieldOptions::stamp_position decides (kAuto treats them as start).
+// Detection runs on the first scan that has points, is logged once, and is then fixed (a driver
+// does not change conventions mid-run); every field can be forced in the options instead.
+//
+// Without a time field the scan is either treated as instantaneous (no de-skew) or its times are
+// estimated from the azimuth of each point assuming a spinning LiDAR (NoTimePolicy).
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ppf_core/cloud_view.hpp"
+#include "ppf_core/log.hpp"
+
+namespace ppf {
+
+enum class StampPosition { kAuto, kStart, kEnd };
+enum class TimeReference { kAuto, kRelative, kAbsolute };
+enum class NoTimePolicy { kNoDeskew, kAzimuth };
+
+struct TimeFieldOptions {
+  std::string field_name;        // "" = detect among t, time, timestamp, time_stamp, offset_time
+  double unit_scale_s = 0.0;     // seconds per raw unit; 0 = by type (uint -> 1e-9, float -> 1)
+  TimeReference reference = TimeReference::kAuto;
+  StampPosition stamp_position = StampPosition::kAuto;
+  NoTimePolicy no_time_policy = NoTimePolicy::kAzimuth;
+  double scan_period_s = 0.1;    // spin period, used only by the azimuth estimate
+  bool azimuth_clockwise = true; // Velodyne/Ouster spin clockwise seen from above
+};
+
+// One decoded point in the LiDAR frame with its absolute time.
+struct TimedPoint {
+  Eigen::Vector3f p;
+  float intensity = 0.f;
+  double t = 0.0;  // absolute seconds
+};
+
+struct DecodedScan {
+  std::vector<TimedPoint> points;  // finite points only, in input order
+  double t_begin = 0.0;            // min point time (header stamp if no points)
+  double t_end = 0.0;              // max point time
+  size_t input_points = 0;         // width * height
+  size_t dropped_nan = 0;          // non-finite coordinates or time
+  bool has_time_field = false;
+  bool times_estimated = false;    // azimuth estimate used
+  std::string note;                // e.g. "no time field: times estimated from azimuth"
+};
+
+// What detection concluded; stable after the first scan.
+struct TimeFieldInfo {
+  bool detected = false;
+  bool present = false;
+  std::string name;
+  FieldType type = FieldType::kFloat32;
+  uint32_t offset = 0;
+  double unit_scale_s = 1.0;
+  bool absolute = false;
+  bool stamp_at_end = false;
+  std::string Describe() const;
+};
+
+class TimeFieldDecoder {
+ public:
+  explicit TimeFieldDecoder(const TimeFieldOptions& options = TimeFieldOptions(),
+                            LogCallback log = nullptr);
+
+  // Decodes `cloud`. On a malformed cloud returns false, fills *error, and leaves *out empty.
+  // Never throws, never reads outside [data, data + size).
+  bool Decode(const CloudView& cloud, DecodedScan* out, std::string* error);
+
+  const TimeFieldInfo& info() const { return info_; }
+  void Reset() { info_ = TimeFieldInfo(); }
+
+ private:
+  void Detect(const CloudView& cloud, const FieldDesc* time_field, const std::vector<double>& raw);
+
+  TimeFieldOptions options_;
+  LogCallback log_;
+  TimeFieldInfo info_;
+};
+
+// Checks the layout of `cloud` (x/y/z present, offsets inside point_step, buffer size). Returns
+// "" if usable, otherwise a human-readable reason.
+std::string ValidateCloudLayout(const CloudView& cloud);
+
+// Field names tried, in order, when TimeFieldOptions::field_name is empty.
+const std::vector<std::string>& KnownTimeFieldNames();
+
+}  // namespace ppf

@@ -1,0 +1,221 @@
+// Incremental voxel-hash map for k-nearest-neighbour queries (the iVox idea of Faster-LIO,
+// written from its description): points live in a hash map of voxels, a query looks only into the
+// voxel of the query point and its neighbours, and insertion never rebuilds anything.
+//
+// Memory is bounded by construction: voxels sit in an LRU list ordered by their last insertion;
+// when more than `max_voxels` exist, the least recently fed voxel is dropped, and each voxel keeps
+// at most `max_points_per_voxel` points. So size() <= max_voxels * max_points_per_voxel forever,
+// whatever the trajectory length. RemoveFarFrom() additionally drops voxels far from the sensor.
+//
+// Exactness: with kNearby27 and max_range <= resolution, GetClosest() returns exactly the k
+// nearest stored points within max_range (every such point lies in one of the 27 voxels). Smaller
+// neighbourhoods (7, 19) are approximations that trade recall at voxel corners for speed.
+//
+// Thread safety: const methods (queries) may run concurrently; Insert/Remove need exclusivity.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <list>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace ppf {
+
+enum class NearbyType { kCenter = 1, kNearby7 = 7, kNearby19 = 19, kNearby27 = 27 };
+
+struct VoxelMapOptions {
+  double resolution = 0.5;                   // voxel edge length, metres (> 0)
+  NearbyType nearby = NearbyType::kNearby19;  // neighbourhood searched by GetClosest
+  size_t max_voxels = 200000;                // LRU capacity (voxels); bounds memory
+  size_t max_points_per_voxel = 10;          // further points into a full voxel are ignored
+  // A point closer than this to a point already in its voxel is not stored: re-observations of a
+  // surface would otherwise fill voxels with near-duplicates. 0 stores every point (tests).
+  double min_point_distance = 0.1;
+};
+
+struct VoxelKey {
+  int32_t x = 0, y = 0, z = 0;
+  bool operator==(const VoxelKey& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+
+struct VoxelKeyHash {
+  size_t operator()(const VoxelKey& k) const {
+    // Large primes (Teschner et al. spatial hashing); collisions only cost a bucket scan.
+    return static_cast<size_t>((static_cast<int64_t>(k.x) * 73856093) ^
+                               (static_cast<int64_t>(k.y) * 471943) ^
+                               (static_cast<int64_t>(k.z) * 83492791));
+  }
+};
+
+inline VoxelKey ToVoxelKey(const Eigen::Vector3f& p, double inv_resolution) {
+  return VoxelKey{static_cast<int32_t>(std::floor(p.x() * inv_resolution)),
+                  static_cast<int32_t>(std::floor(p.y() * inv_resolution)),
+                  static_cast<int32_t>(std::floor(p.z() * inv_resolution))};
+}
+
+class VoxelMap {
+ public:
+  using Point = Eigen::Vector3f;
+
+  explicit VoxelMap(const VoxelMapOptions& options = VoxelMapOptions()) : options_(options) {
+    if (!(options_.resolution > 1e-3)) options_.resolution = 1e-3;  // guards tiny/NaN voxel sizes
+    if (options_.max_voxels == 0) options_.max_voxels = 1;
+    if (options_.max_points_per_voxel == 0) options_.max_points_per_voxel = 1;
+    inv_resolution_ = 1.0 / options_.resolution;
+    BuildOffsets();
+  }
+
+  const VoxelMapOptions& options() const { return options_; }
+
+  void Insert(const Point& p) {
+    if (!p.allFinite()) return;
+    const VoxelKey key = ToVoxelKey(p, inv_resolution_);
+    auto it = index_.find(key);
+    if (it == index_.end()) {
+      lru_.push_front(Voxel{key, {}});
+      lru_.front().points.reserve(std::min<size_t>(options_.max_points_per_voxel, 8));
+      it = index_.emplace(key, lru_.begin()).first;
+      if (index_.size() > options_.max_voxels) EvictOldest();
+    } else if (it->second != lru_.begin()) {
+      lru_.splice(lru_.begin(), lru_, it->second);  // O(1), iterators stay valid
+    }
+    std::vector<Point>& pts = it->second->points;
+    if (pts.size() >= options_.max_points_per_voxel) return;
+    const float min_d2 = static_cast<float>(options_.min_point_distance * options_.min_point_distance);
+    if (min_d2 > 0.f) {
+      for (const Point& q : pts) {
+        if ((q - p).squaredNorm() < min_d2) return;
+      }
+    }
+    pts.push_back(p);
+    ++num_points_;
+  }
+
+  void Insert(const std::vector<Point>& points) {
+    for (const Point& p : points) Insert(p);
+  }
+
+  // Up to k nearest stored points within max_range of `query`, nearest first. Returns the count.
+  size_t GetClosest(const Point& query, size_t k, double max_range, std::vector<Point>* out) const {
+    out->clear();
+    if (k == 0 || !query.allFinite()) return 0;
+    const float max_d2 = static_cast<float>(max_range * max_range);
+    const VoxelKey c = ToVoxelKey(query, inv_resolution_);
+    // Small fixed buffer of (distance^2, point); k is tiny (5) in every use.
+    std::vector<std::pair<float, Point>> cand;
+    cand.reserve(64);
+    for (const VoxelKey& o : offsets_) {
+      const auto it = index_.find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
+      if (it == index_.end()) continue;
+      for (const Point& p : it->second->points) {
+        const float d2 = (p - query).squaredNorm();
+        if (d2 <= max_d2) cand.emplace_back(d2, p);
+      }
+    }
+    const size_t n = std::min(k, cand.size());
+    std::partial_sort(cand.begin(), cand.begin() + static_cast<std::ptrdiff_t>(n), cand.end(),
+                      [](const auto& a, const auto& b) { return a.first < b.first; });
+    out->reserve(n);
+    for (size_t i = 0; i < n; ++i) out->push_back(cand[i].second);
+    return n;
+  }
+
+  // Drops every voxel whose centre is farther than `radius` from `center` (distance-based bound
+  // on top of the LRU one; the facade calls it with the sensor position).
+  void RemoveFarFrom(const Eigen::Vector3d& center, double radius) {
+    const double r2 = radius * radius;
+    for (auto it = lru_.begin(); it != lru_.end();) {
+      const Eigen::Vector3d vc((it->key.x + 0.5) * options_.resolution,
+                               (it->key.y + 0.5) * options_.resolution,
+                               (it->key.z + 0.5) * options_.resolution);
+      if ((vc - center).squaredNorm() > r2) {
+        num_points_ -= it->points.size();
+        index_.erase(it->key);
+        it = lru_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+
+  void clear() {
+    lru_.clear();
+    index_.clear();
+    num_points_ = 0;
+  }
+
+  size_t size() const { return num_points_; }  // stored points
+  size_t num_voxels() const { return index_.size(); }
+  // The bound size() can never exceed.
+  size_t capacity_points() const { return options_.max_voxels * options_.max_points_per_voxel; }
+
+ private:
+  struct Voxel {
+    VoxelKey key;
+    std::vector<Point> points;
+  };
+
+  void EvictOldest() {
+    num_points_ -= lru_.back().points.size();
+    index_.erase(lru_.back().key);
+    lru_.pop_back();
+  }
+
+  void BuildOffsets() {
+    offsets_.clear();
+    offsets_.push_back({0, 0, 0});
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          const int manhattan = std::abs(dx) + std::abs(dy) + std::abs(dz);
+          if (manhattan == 0) continue;
+          const bool take = (options_.nearby == NearbyType::kNearby7 && manhattan == 1) ||
+                            (options_.nearby == NearbyType::kNearby19 && manhattan <= 2) ||
+                            (options_.nearby == NearbyType::kNearby27);
+          if (take) offsets_.push_back({dx, dy, dz});
+        }
+      }
+    }
+  }
+
+  VoxelMapOptions options_;
+  double inv_resolution_ = 2.0;
+  std::list<Voxel> lru_;  // front = most recently fed
+  std::unordered_map<VoxelKey, std::list<Voxel>::iterator, VoxelKeyHash> index_;
+  std::vector<VoxelKey> offsets_;
+  size_t num_points_ = 0;
+};
+
+// Voxel-grid downsampling: one point per occupied voxel, the centroid of its points, in order of
+// first appearance (deterministic). A non-positive or tiny voxel size returns the input unchanged.
+inline std::vector<Eigen::Vector3f> VoxelDownsample(const std::vector<Eigen::Vector3f>& points,
+                                                    double voxel_size) {
+  if (!(voxel_size > 1e-3)) return points;
+  const double inv = 1.0 / voxel_size;
+  std::unordered_map<VoxelKey, size_t, VoxelKeyHash> slot;
+  slot.reserve(points.size());
+  std::vector<Eigen::Vector3d> sum;
+  std::vector<int> count;
+  for (const Eigen::Vector3f& p : points) {
+    if (!p.allFinite()) continue;
+    const auto [it, inserted] = slot.emplace(ToVoxelKey(p, inv), sum.size());
+    if (inserted) {
+      sum.push_back(p.cast<double>());
+      count.push_back(1);
+    } else {
+      sum[it->second] += p.cast<double>();
+      ++count[it->second];
+    }
+  }
+  std::vector<Eigen::Vector3f> out(sum.size());
+  for (size_t i = 0; i < sum.size(); ++i) out[i] = (sum[i] / count[i]).cast<float>();
+  return out;
+}
+
+}  // namespace ppf

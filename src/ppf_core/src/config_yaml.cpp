@@ -1,0 +1,1 @@
+#include "ppf_core/config_yaml.hpp"

@@ -1,0 +1,174 @@
+#include "ppf_core/iekf.hpp"
+
+#include <chrono>
+#include <cstdio>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include "ppf_core/so3.hpp"
+
+namespace ppf {
+namespace {
+
+using Vec18 = Eigen::Matrix<double, kStateDim, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+double MsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// x (-) prior in the error-state coordinates of imu_propagation.hpp.
+Vec18 BoxMinus(const NavState& x, const NavState& prior) {
+  Vec18 d;
+  d.segment<3>(kRot) = SO3Log(prior.R_world_imu.transpose() * x.R_world_imu);
+  d.segment<3>(kPos) = x.p_world_imu - prior.p_world_imu;
+  d.segment<3>(kVel) = x.v_world - prior.v_world;
+  d.segment<3>(kBg) = x.gyro_bias - prior.gyro_bias;
+  d.segment<3>(kBa) = x.acc_bias - prior.acc_bias;
+  d.segment<3>(kGrav) = x.gravity_world - prior.gravity_world;
+  return d;
+}
+
+void BoxPlus(const Vec18& d, NavState* x) {
+  x->R_world_imu = NormalizeRotation(x->R_world_imu * SO3Exp(d.segment<3>(kRot)));
+  x->p_world_imu += d.segment<3>(kPos);
+  x->v_world += d.segment<3>(kVel);
+  x->gyro_bias += d.segment<3>(kBg);
+  x->acc_bias += d.segment<3>(kBa);
+  x->gravity_world += d.segment<3>(kGrav);
+}
+
+// Projector onto the well-constrained eigen-directions of a 3x3 information block.
+Eigen::Matrix3d StrongProjector(const Eigen::Matrix3d& info, double min_eig, const char* what,
+                                Eigen::Vector3d* eig, std::string* reason) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(info);
+  *eig = es.eigenvalues();
+  Eigen::Matrix3d proj = Eigen::Matrix3d::Zero();
+  for (int i = 0; i < 3; ++i) {
+    const Eigen::Vector3d v = es.eigenvectors().col(i);
+    if (es.eigenvalues()(i) >= min_eig) {
+      proj += v * v.transpose();
+    } else {
+      char buf[160];
+      std::snprintf(buf, sizeof(buf), "%s%s along (%.2f %.2f %.2f): eig %.1f < %.1f",
+                    reason->empty() ? "" : "; ", what, v.x(), v.y(), v.z(),
+                    es.eigenvalues()(i), min_eig);
+      *reason += buf;
+    }
+  }
+  return proj;
+}
+
+}  // namespace
+
+IekfReport IekfUpdate(const IekfOptions& options, const Eigen::Isometry3d& T_imu_lidar,
+                      const std::vector<ResidualProvider*>& providers, NavState* state) {
+  IekfReport report;
+  const NavState prior = *state;
+  NavState x = prior;
+  const Eigen::LDLT<StateCov> prior_ldlt(prior.P);
+  const StateCov P_inv = prior_ldlt.solve(StateCov::Identity());
+  const double inv_var = 1.0 / (options.laser_point_std * options.laser_point_std);
+  std::vector<PointPlaneRow> rows;
+  StateCov A = P_inv;
+  bool have_A = false;
+  const int max_iter = std::max(1, options.max_iterations);
+
+  for (int iter = 0; iter < max_iter; ++iter) {
+    auto t0 = std::chrono::steady_clock::now();
+    const Eigen::Isometry3d T_world_lidar = x.T_world_imu() * T_imu_lidar;
+    rows.clear();
+    report.rows_per_provider.assign(providers.size(), 0);
+    for (size_t i = 0; i < providers.size(); ++i) {
+      const size_t before = rows.size();
+      providers[i]->ComputeRows(T_world_lidar, &rows);
+      report.rows_per_provider[i] = static_cast<int>(rows.size() - before);
+    }
+    report.residuals_ms += MsSince(t0);
+    report.num_rows = static_cast<int>(rows.size());
+    t0 = std::chrono::steady_clock::now();
+    if (report.num_rows < options.min_rows) {
+      report.skipped = true;
+      report.update_ms += MsSince(t0);
+      break;
+    }
+
+    // Rows -> normal equations of the pose block. J = d r / d [dtheta, dp].
+    const long n = static_cast<long>(rows.size());
+    std::vector<Vec6> J(rows.size());
+    std::vector<double> r(rows.size());
+    const Eigen::Matrix3d R = x.R_world_imu;
+    const Eigen::Vector3d p = x.p_world_imu;
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < n; ++i) {
+      const PointPlaneRow& row = rows[static_cast<size_t>(i)];
+      const Eigen::Vector3d p_imu = T_imu_lidar * row.point_lidar;
+      r[static_cast<size_t>(i)] = row.normal_world.dot(R * p_imu + p) + row.offset;
+      Vec6& j = J[static_cast<size_t>(i)];
+      j.head<3>() = p_imu.cross(R.transpose() * row.normal_world);
+      j.tail<3>() = row.normal_world;
+    }
+    Mat6 JtJ = Mat6::Zero();
+    Vec6 Jtr = Vec6::Zero();
+    for (long i = 0; i < n; ++i) {
+      const double w = rows[static_cast<size_t>(i)].weight;
+      JtJ.noalias() += w * J[static_cast<size_t>(i)] * J[static_cast<size_t>(i)].transpose();
+      Jtr.noalias() += w * J[static_cast<size_t>(i)] * r[static_cast<size_t>(i)];
+    }
+
+    // Degeneracy from the first iteration's geometry (later ones see nearly the same matches).
+    report.degenerate_reason.clear();
+    Mat6 proj = Mat6::Zero();
+    proj.topLeftCorner<3, 3>() =
+        StrongProjector(JtJ.topLeftCorner<3, 3>(), options.degeneracy_min_eig_rotation,
+                        "rotation", &report.eig_rotation, &report.degenerate_reason);
+    proj.bottomRightCorner<3, 3>() =
+        StrongProjector(JtJ.bottomRightCorner<3, 3>(), options.degeneracy_min_eig_translation,
+                        "translation", &report.eig_translation, &report.degenerate_reason);
+    report.degenerate = !report.degenerate_reason.empty();
+    Mat6 H = inv_var * JtJ;
+    Vec6 b = inv_var * Jtr;
+    if (report.degenerate) {
+      // Measurements say nothing trustworthy along weak directions: drop them there so the
+      // IMU prediction (and its covariance) stays in charge.
+      H = proj * H * proj;
+      b = proj * b;
+    }
+
+    const Vec18 d_prior = BoxMinus(x, prior);
+    A = P_inv;
+    A.topLeftCorner<6, 6>() += H;
+    Vec18 rhs = -P_inv * d_prior;
+    rhs.head<6>() -= b;
+    const Vec18 dx = A.ldlt().solve(rhs);
+    have_A = true;
+    if (!dx.allFinite()) {
+      report.skipped = true;
+      x = prior;
+      have_A = false;
+      report.update_ms += MsSince(t0);
+      break;
+    }
+    BoxPlus(dx, &x);
+    report.iterations = iter + 1;
+    report.update_ms += MsSince(t0);
+    if (dx.segment<3>(kRot).norm() < options.convergence_rot_rad &&
+        dx.segment<3>(kPos).norm() < options.convergence_trans_m) {
+      report.converged = true;
+      break;
+    }
+  }
+
+  if (have_A) {
+    StateCov P = A.ldlt().solve(StateCov::Identity());
+    x.P = 0.5 * (P + P.transpose());
+    *state = x;
+  } else {
+    *state = prior;
+  }
+  return report;
+}
+
+}  // namespace ppf

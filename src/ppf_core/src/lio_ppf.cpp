@@ -1,0 +1,478 @@
+#include "ppf_core/lio_ppf.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "ppf_core/deskew.hpp"
+#include "ppf_core/so3.hpp"
+
+namespace ppf {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+void Append(std::string* reason, const std::string& what) {
+  if (what.empty()) return;
+  if (!reason->empty()) *reason += "; ";
+  *reason += what;
+}
+
+}  // namespace
+
+const char* StatusName(Status status) {
+  switch (status) {
+    case Status::kOk:
+      return "ok";
+    case Status::kInitializing:
+      return "initializing";
+    case Status::kDegenerate:
+      return "degenerate";
+    case Status::kReset:
+      return "reset";
+    case Status::kRejected:
+      return "rejected";
+  }
+  return "?";
+}
+
+std::vector<std::string> ValidateConfig(Config* c) {
+  std::vector<std::string> notes;
+  auto fix = [&notes](bool bad, const std::string& what, auto* field, auto value) {
+    if (bad) {
+      std::ostringstream os;
+      os << what << ": " << *field << " -> " << value;
+      notes.push_back(os.str());
+      *field = value;
+    }
+  };
+  fix(!(c->min_range >= 0.0), "min_range", &c->min_range, 0.0);
+  fix(!(c->max_range > c->min_range), "max_range", &c->max_range, c->min_range + 100.0);
+  fix(c->point_stride < 1, "point_stride", &c->point_stride, 1);
+  fix(!(c->scan_voxel_size >= 0.0), "scan_voxel_size", &c->scan_voxel_size, 0.5);
+  fix(c->scan_voxel_size > 0.0 && c->scan_voxel_size < 0.01, "scan_voxel_size",
+      &c->scan_voxel_size, 0.01);
+  fix(!(c->map.resolution >= 0.05), "map.resolution", &c->map.resolution, 0.05);
+  fix(c->map.max_voxels < 1000, "map.max_voxels", &c->map.max_voxels, size_t{1000});
+  fix(c->map.max_points_per_voxel < 1, "map.max_points_per_voxel", &c->map.max_points_per_voxel,
+      size_t{1});
+  fix(!(c->map.min_point_distance >= 0.0), "map.min_point_distance", &c->map.min_point_distance,
+      0.0);
+  fix(!(c->map_radius >= 0.0), "map_radius", &c->map_radius, 0.0);
+  fix(!(c->time.scan_period_s > 0.0), "time.scan_period", &c->time.scan_period_s, 0.1);
+  fix(!(c->time.unit_scale_s >= 0.0), "time.unit_scale", &c->time.unit_scale_s, 0.0);
+  fix(!(c->init.duration_s >= 0.0), "init.duration", &c->init.duration_s, 1.0);
+  fix(c->init.min_samples < 2, "init.min_samples", &c->init.min_samples, 2);
+  fix(!(c->max_imu_gap_s > 0.0), "max_imu_gap", &c->max_imu_gap_s, 0.5);
+  fix(!(c->noise.gyro >= 0.0), "noise.gyro", &c->noise.gyro, 0.01);
+  fix(!(c->noise.acc >= 0.0), "noise.acc", &c->noise.acc, 0.1);
+  fix(!(c->noise.gyro_bias >= 0.0), "noise.gyro_bias", &c->noise.gyro_bias, 1e-4);
+  fix(!(c->noise.acc_bias >= 0.0), "noise.acc_bias", &c->noise.acc_bias, 1e-3);
+  fix(c->iekf.max_iterations < 1, "iekf.max_iterations", &c->iekf.max_iterations, 1);
+  fix(c->iekf.max_iterations > 30, "iekf.max_iterations", &c->iekf.max_iterations, 30);
+  fix(!(c->iekf.laser_point_std > 0.0), "iekf.laser_point_std", &c->iekf.laser_point_std, 0.03);
+  fix(c->iekf.min_rows < 6, "iekf.min_rows", &c->iekf.min_rows, 6);
+  fix(c->knn.k < 3, "knn.k", &c->knn.k, 3);
+  fix(c->knn.k > 50, "knn.k", &c->knn.k, 50);
+  fix(!(c->knn.plane_threshold > 0.0), "knn.plane_threshold", &c->knn.plane_threshold, 0.1);
+  fix(!(c->knn.max_neighbor_distance > 0.0), "knn.max_neighbor_distance",
+      &c->knn.max_neighbor_distance, 1.0);
+  fix(!(c->knn.max_residual > 0.0), "knn.max_residual", &c->knn.max_residual, 0.5);
+  const Eigen::Matrix3d R = c->T_imu_lidar.linear();
+  if (!c->T_imu_lidar.matrix().allFinite() ||
+      (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-3 || R.determinant() < 0) {
+    notes.push_back("T_imu_lidar rotation is not a rotation: re-orthonormalized");
+    if (c->T_imu_lidar.matrix().allFinite() && R.determinant() > 0) {
+      c->T_imu_lidar.linear() = NormalizeRotation(R);
+    } else {
+      c->T_imu_lidar = Eigen::Isometry3d::Identity();
+      notes.back() = "T_imu_lidar invalid: identity used";
+    }
+  }
+  return notes;
+}
+
+struct LioPpf::Impl {
+  struct QueuedScan {
+    bool rejected = false;
+    std::string error;
+    double stamp_s = 0.0;
+    double decode_ms = 0.0;
+    DecodedScan scan;
+  };
+
+  explicit Impl(const Config& c) : config(c), map(c.map) {
+    for (const std::string& note : ValidateConfig(&config)) Log(LogLevel::kWarn, "config: " + note);
+    if (config.num_threads > 0) {
+      config.knn.num_threads = config.num_threads;
+      config.iekf.num_threads = config.num_threads;
+    }
+    decoder = TimeFieldDecoder(config.time, config.log);
+    init = ImuInitializer(config.init);
+    map = VoxelMap(config.map);
+    knn = std::make_shared<KnnResidualProvider>(config.knn);
+  }
+
+  void Log(LogLevel level, const std::string& msg) const {
+    if (config.log) config.log(level, msg);
+  }
+
+  // Drops filter state and map; the next IMU samples start a new initialization.
+  void ResetFilter(const std::string& reason) {
+    initialized = false;
+    map_initialized = false;
+    init.Reset();
+    map.clear();
+    imu.clear();
+    state = NavState();
+    last_scan_end = -std::numeric_limits<double>::infinity();
+    if (splitter) splitter->Reset();
+    for (auto& p : extra) p->Reset();
+    knn->Reset();
+    scans_since_prune = 0;
+    if (!reason.empty()) {
+      Log(LogLevel::kWarn, "reset: " + reason);
+      ScanResult r;
+      r.status = Status::kReset;
+      r.reason = reason;
+      r.stamp_s = last_imu_stamp;
+      pending.push_back(r);
+    }
+  }
+
+  void AddImu(const ImuSample& s) {
+    if (!std::isfinite(s.stamp_s) || !s.angular_velocity.allFinite() ||
+        !s.linear_acceleration.allFinite()) {
+      ++dropped_imu;
+      return;
+    }
+    if (s.stamp_s < last_imu_stamp - 1e-9) {
+      std::ostringstream os;
+      os << "IMU time went backwards by " << last_imu_stamp - s.stamp_s << " s";
+      last_imu_stamp = -std::numeric_limits<double>::infinity();
+      ResetFilter(os.str());
+    } else if (initialized && s.stamp_s - last_imu_stamp > config.max_imu_gap_s) {
+      std::ostringstream os;
+      os << "IMU gap of " << s.stamp_s - last_imu_stamp << " s > max_imu_gap "
+         << config.max_imu_gap_s << " s";
+      ResetFilter(os.str());
+    }
+    last_imu_stamp = s.stamp_s;
+    imu.push_back(s);
+    if (!initialized) {
+      const ImuInitializer::State st = init.Add(s);
+      if (st == ImuInitializer::State::kRestarted) Log(LogLevel::kWarn, init.reason());
+      if (st == ImuInitializer::State::kDone) StartFilter();
+    }
+    // Bounded buffer even if no scan ever arrives.
+    while (imu.size() > 2 && imu[1].stamp_s < state.stamp_s - 1.0 && initialized) imu.pop_front();
+    while (imu.size() > 20000) imu.pop_front();
+  }
+
+  void StartFilter() {
+    state = NavState();
+    state.stamp_s = init.stamp_s();
+    state.R_world_imu = init.R_world_imu();
+    state.gyro_bias = init.gyro_bias();
+    state.gravity_world = init.gravity_world();
+    state.P = StateCov::Zero();
+    state.P.block<3, 3>(kRot, kRot).diagonal().setConstant(1e-4);
+    state.P.block<3, 3>(kPos, kPos).diagonal().setConstant(1e-6);
+    state.P.block<3, 3>(kVel, kVel).diagonal().setConstant(1e-4);
+    state.P.block<3, 3>(kBg, kBg).diagonal().setConstant(1e-6);
+    state.P.block<3, 3>(kBa, kBa).diagonal().setConstant(1e-3);
+    state.P.block<3, 3>(kGrav, kGrav).diagonal().setConstant(1e-5);
+    initialized = true;
+    std::ostringstream os;
+    os << "IMU initialized at t=" << state.stamp_s << ": |g|=" << -state.gravity_world.z()
+       << " m/s^2, acc_scale=" << init.acc_scale() << ", gyro bias=["
+       << state.gyro_bias.transpose() << "]";
+    Log(LogLevel::kInfo, os.str());
+  }
+
+  void AddScan(const CloudView& cloud) {
+    QueuedScan q;
+    q.stamp_s = cloud.stamp_s;
+    const auto t0 = Clock::now();
+    std::string error;
+    if (!std::isfinite(cloud.stamp_s)) {
+      q.rejected = true;
+      q.error = "header stamp is not finite";
+    } else if (!decoder.Decode(cloud, &q.scan, &error)) {
+      q.rejected = true;
+      q.error = error;
+    }
+    if (q.rejected) Log(LogLevel::kWarn, "scan rejected: " + q.error);
+    q.decode_ms = MsSince(t0);
+    scans.push_back(std::move(q));
+  }
+
+  ScanResult Rejected(const QueuedScan& q) const {
+    ScanResult r;
+    r.stamp_s = q.stamp_s;
+    r.status = Status::kRejected;
+    r.reason = "malformed cloud: " + q.error;
+    r.map_size = map.size();
+    return r;
+  }
+
+  std::vector<ScanResult> Process(bool flush) {
+    std::vector<ScanResult> out;
+    while (!scans.empty()) {
+      QueuedScan& q = scans.front();
+      if (!q.rejected && !flush && last_imu_stamp < q.scan.t_end) break;  // wait for the IMU
+      // Reset notices belong before the first scan processed after the reset.
+      for (ScanResult& r : pending) out.push_back(std::move(r));
+      pending.clear();
+      if (q.rejected) {
+        out.push_back(Rejected(q));
+      } else {
+        out.push_back(ProcessOne(q));
+      }
+      scans.pop_front();
+    }
+    if (flush) {
+      for (ScanResult& r : pending) out.push_back(std::move(r));
+      pending.clear();
+    }
+    return out;
+  }
+
+  void FillState(ScanResult* r) const {
+    r->T_world_imu = state.T_world_imu();
+    r->T_world_lidar = r->T_world_imu * config.T_imu_lidar;
+    r->velocity_world = state.v_world;
+    r->gyro_bias = state.gyro_bias;
+    r->acc_bias = state.acc_bias;
+    r->gravity_world = state.gravity_world;
+    r->covariance = state.P;
+    r->pose_covariance = state.P.topLeftCorner<6, 6>();
+  }
+
+  ScanResult ProcessOne(QueuedScan& q) {
+    const auto t_total = Clock::now();
+    ScanResult r;
+    const DecodedScan& scan = q.scan;
+    r.stamp_s = scan.t_end;
+    r.scan_begin_s = scan.t_begin;
+    r.input_points = scan.input_points;
+    r.dropped_nan = scan.dropped_nan;
+    r.map_size = map.size();
+    if (!initialized) {
+      r.status = Status::kInitializing;
+      r.reason = init.reason().empty() ? "waiting for IMU data" : init.reason();
+      return r;
+    }
+    if (scan.t_end <= state.stamp_s && !map_initialized) {
+      r.status = Status::kInitializing;
+      r.reason = "scan ends before IMU initialization finished";
+      return r;
+    }
+    if (scan.t_end < last_scan_end - 1e-6) {
+      std::ostringstream os;
+      os << "scan time went backwards by " << last_scan_end - scan.t_end << " s";
+      ResetFilter("");
+      Log(LogLevel::kWarn, "reset: " + os.str());
+      r.status = Status::kReset;
+      r.reason = os.str();
+      return r;
+    }
+    Append(&r.reason, scan.note);
+    if (config.mode == Mode::kPpf && !splitter) {
+      Append(&r.reason, "ppf mode requested but no ScanSplitter installed: running kNN");
+    }
+
+    // Preprocess: range and stride filtering of the decoded points.
+    auto t0 = Clock::now();
+    std::vector<TimedPoint> pts;
+    pts.reserve(scan.points.size() / static_cast<size_t>(config.point_stride) + 1);
+    const double min_r2 = config.min_range * config.min_range;
+    const double max_r2 = config.max_range * config.max_range;
+    for (size_t i = 0; i < scan.points.size(); i += static_cast<size_t>(config.point_stride)) {
+      const double r2 = scan.points[i].p.cast<double>().squaredNorm();
+      if (r2 >= min_r2 && r2 <= max_r2) pts.push_back(scan.points[i]);
+    }
+    r.valid_points = pts.size();
+    r.timings.preprocess = q.decode_ms + MsSince(t0);
+
+    // Propagate to the scan end and de-skew.
+    t0 = Clock::now();
+    const double t_end = std::max(scan.t_end, state.stamp_s);
+    std::vector<ImuSample> samples(imu.begin(), imu.end());
+    PoseTrace trace;
+    PropagateImu(samples, t_end, init.acc_scale(), config.noise, &state, &trace);
+    std::vector<Eigen::Vector3f> deskewed;
+    if (scan.has_time_field || scan.times_estimated) {
+      DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &deskewed);
+    } else {
+      deskewed.reserve(pts.size());
+      for (const TimedPoint& tp : pts) deskewed.push_back(tp.p);
+    }
+    r.timings.deskew = MsSince(t0);
+    last_scan_end = t_end;
+    r.stamp_s = t_end;
+    // Keep one sample at or before the state time for the next interpolation.
+    while (imu.size() > 2 && imu[1].stamp_s <= state.stamp_s) imu.pop_front();
+
+    t0 = Clock::now();
+    frame = ScanFrame();
+    frame.stamp_s = t_end;
+    frame.points_lidar = VoxelDownsample(deskewed, config.scan_voxel_size);
+    frame.labels.assign(frame.points_lidar.size(), PointLabel::kScattered);
+    frame.T_imu_lidar = config.T_imu_lidar;
+    frame.T_world_lidar_predicted = state.T_world_imu() * config.T_imu_lidar;
+    frame.map = &map;
+    r.downsampled_points = frame.points_lidar.size();
+    r.timings.downsample = MsSince(t0);
+
+    if (!map_initialized) {
+      t0 = Clock::now();
+      InsertScattered(frame, frame.T_world_lidar_predicted, &r);
+      map_initialized = !frame.points_lidar.empty();
+      r.timings.map_insert = MsSince(t0);
+      r.status = map_initialized ? Status::kOk : Status::kInitializing;
+      Append(&r.reason, map_initialized ? "map initialized" : "empty first scan");
+      r.pose_valid = true;
+      r.scattered_points = frame.points_lidar.size();
+      FillState(&r);
+      r.map_size = map.size();
+      r.timings.total = MsSince(t_total) + q.decode_ms;
+      return r;
+    }
+
+    if (config.mode == Mode::kPpf && splitter) {
+      t0 = Clock::now();
+      splitter->Split(&frame);
+      frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
+      r.timings.ppf = MsSince(t0);
+    }
+    for (PointLabel l : frame.labels) {
+      if (l == PointLabel::kSkeleton) ++r.skeleton_points;
+      else if (l == PointLabel::kScattered) ++r.scattered_points;
+      else ++r.discarded_points;
+    }
+
+    std::vector<ResidualProvider*> providers;
+    providers.push_back(knn.get());
+    if (config.mode == Mode::kPpf) {
+      for (auto& p : extra) providers.push_back(p.get());
+    }
+    for (ResidualProvider* p : providers) p->BeginScan(frame);
+    const IekfReport rep = IekfUpdate(config.iekf, config.T_imu_lidar, providers, &state);
+    r.timings.residuals = rep.residuals_ms;
+    r.timings.update = rep.update_ms;
+    r.iterations = rep.iterations;
+    r.converged = rep.converged;
+    r.eig_rotation = rep.eig_rotation;
+    r.eig_translation = rep.eig_translation;
+    for (size_t i = 0; i < rep.rows_per_provider.size(); ++i) {
+      if (i == 0) r.knn_residuals = static_cast<size_t>(rep.rows_per_provider[i]);
+      else r.skeleton_residuals += static_cast<size_t>(rep.rows_per_provider[i]);
+    }
+    const Eigen::Isometry3d T_world_lidar = state.T_world_imu() * config.T_imu_lidar;
+    if (config.mode == Mode::kPpf && splitter) {
+      t0 = Clock::now();
+      splitter->Finish(frame, T_world_lidar);
+      r.timings.ppf += MsSince(t0);
+    }
+    for (ResidualProvider* p : providers) p->EndScan(T_world_lidar);
+
+    if (rep.skipped) {
+      r.status = Status::kDegenerate;
+      std::ostringstream os;
+      os << "too few residuals (" << rep.num_rows << " < " << config.iekf.min_rows
+         << "): IMU prediction only";
+      Append(&r.reason, os.str());
+    } else if (rep.degenerate) {
+      r.status = Status::kDegenerate;
+      Append(&r.reason, "degenerate: " + rep.degenerate_reason);
+    } else {
+      r.status = Status::kOk;
+    }
+    r.pose_valid = true;
+
+    t0 = Clock::now();
+    // A scan that could not be registered is not trusted to extend the map.
+    if (!rep.skipped) InsertScattered(frame, T_world_lidar, &r);
+    if (config.map_radius > 0.0 && ++scans_since_prune >= 10) {
+      map.RemoveFarFrom(state.p_world_imu, config.map_radius);
+      scans_since_prune = 0;
+    }
+    r.timings.map_insert = MsSince(t0);
+    r.map_size = map.size();
+    FillState(&r);
+    r.timings.total = MsSince(t_total) + q.decode_ms;
+    return r;
+  }
+
+  void InsertScattered(const ScanFrame& f, const Eigen::Isometry3d& T_world_lidar, ScanResult* r) {
+    const Eigen::Isometry3f T = T_world_lidar.cast<float>();
+    for (size_t i = 0; i < f.points_lidar.size(); ++i) {
+      if (f.labels[i] != PointLabel::kScattered) continue;
+      map.Insert(T * f.points_lidar[i]);
+      ++r->map_inserted;
+    }
+  }
+
+  Config config;
+  TimeFieldDecoder decoder;
+  ImuInitializer init;
+  VoxelMap map;
+  std::shared_ptr<KnnResidualProvider> knn;
+  std::shared_ptr<ScanSplitter> splitter;
+  std::vector<std::shared_ptr<ResidualProvider>> extra;
+  std::deque<ImuSample> imu;
+  std::deque<QueuedScan> scans;
+  std::vector<ScanResult> pending;
+  NavState state;
+  ScanFrame frame;
+  bool initialized = false;
+  bool map_initialized = false;
+  double last_imu_stamp = -std::numeric_limits<double>::infinity();
+  double last_scan_end = -std::numeric_limits<double>::infinity();
+  size_t dropped_imu = 0;
+  int scans_since_prune = 0;
+};
+
+LioPpf::LioPpf(const Config& config) : impl_(std::make_unique<Impl>(config)) {}
+LioPpf::~LioPpf() = default;
+
+void LioPpf::AddImu(const ImuSample& sample) { impl_->AddImu(sample); }
+void LioPpf::AddScan(const CloudView& cloud) { impl_->AddScan(cloud); }
+std::vector<ScanResult> LioPpf::Process(bool flush) { return impl_->Process(flush); }
+
+ScanResult LioPpf::ProcessScan(const CloudView& cloud) {
+  AddScan(cloud);
+  std::vector<ScanResult> results = Process(true);
+  if (results.empty()) {
+    ScanResult r;
+    r.status = Status::kRejected;
+    r.reason = "internal: no result";
+    return r;
+  }
+  return results.back();
+}
+
+void LioPpf::SetScanSplitter(std::shared_ptr<ScanSplitter> splitter) {
+  impl_->splitter = std::move(splitter);
+}
+void LioPpf::AddResidualProvider(std::shared_ptr<ResidualProvider> provider) {
+  if (provider) impl_->extra.push_back(std::move(provider));
+}
+void LioPpf::Reset() {
+  impl_->scans.clear();
+  impl_->pending.clear();
+  impl_->last_imu_stamp = -std::numeric_limits<double>::infinity();
+  impl_->ResetFilter("");
+  impl_->decoder.Reset();
+}
+const Config& LioPpf::config() const { return impl_->config; }
+const VoxelMap& LioPpf::map() const { return impl_->map; }
+const TimeFieldInfo& LioPpf::time_field_info() const { return impl_->decoder.info(); }
+bool LioPpf::initialized() const { return impl_->initialized; }
+
+}  // namespace ppf

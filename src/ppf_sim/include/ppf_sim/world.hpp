@@ -1,0 +1,38 @@
+// A scene together with the ground-truth trajectory that moves through it.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ppf_sim/scene.hpp"
+#include "ppf_sim/trajectory.hpp"
+
+namespace ppf::sim {
+
+enum class MotionKind { kCar, kHandheld };
+
+struct WorldOptions {
+  std::string scene = "urban";  // urban | indoor | park | ramps
+  MotionKind motion = MotionKind::kCar;
+  bool motion_is_default = true;  // true: use the scene's default motion
+  double speed = 0.0;             // m/s; 0 = default (car 10, park car 5, walking 1.3)
+  double duration = 30.0;         // s the trajectory must cover
+  double static_time = 2.5;       // s at rest at the start
+  double max_rate_deg = 150.0;    // hand-held shake: peak rate of the shake, deg/s (turns add)
+  uint64_t seed = 1;
+};
+
+struct World {
+  Scene scene;
+  Trajectory trajectory;
+  MotionKind motion = MotionKind::kCar;
+  double speed = 0.0;
+};
+
+std::vector<std::string> SceneNames();
+MotionKind DefaultMotion(const std::string& scene);
+// Throws std::invalid_argument for an unknown scene.
+World BuildWorld(const WorldOptions& opt);
+
+}  // namespace ppf::sim

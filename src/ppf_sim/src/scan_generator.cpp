@@ -1,0 +1,163 @@
+#include "ppf_sim/scan_generator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "ppf_sim/rng.hpp"
+
+namespace ppf::sim {
+
+namespace {
+
+struct Sample {
+  float x, y, z;
+  float intensity;
+  float reflectivity;  // 0..1
+  float range;         // measured, m; 0 = no return
+};
+
+template <typename T>
+void Put(uint8_t* dst, uint32_t offset, T v) {
+  std::memcpy(dst + offset, &v, sizeof(T));
+}
+
+}  // namespace
+
+ScanGenerator::ScanGenerator(const Scene& scene, const Trajectory& traj, LidarModel model,
+                             ScanOptions opt)
+    : scene_(scene), traj_(traj), model_(std::move(model)), opt_(std::move(opt)) {
+  if (opt_.max_range > 0.0) model_.max_range = opt_.max_range;
+  for (double e : model_.elevation_deg) {
+    cos_el_.push_back(std::cos(e * M_PI / 180.0));
+    sin_el_.push_back(std::sin(e * M_PI / 180.0));
+  }
+}
+
+double ScanGenerator::ColumnAzimuth(int c) const {
+  return M_PI - 2.0 * M_PI * c / model_.columns;
+}
+
+int ScanGenerator::NumScans(double duration) const {
+  return static_cast<int>(std::floor(duration * model_.rate_hz + 1e-9));
+}
+
+CloudBuffer ScanGenerator::Generate(int k) const {
+  const int nc = model_.columns;
+  const int nr = static_cast<int>(model_.elevation_deg.size());
+  const double period = 1.0 / model_.rate_hz;
+  const double t_scan = k * period;
+  std::vector<Sample> samples(static_cast<size_t>(nc) * nr);
+
+#pragma omp parallel for schedule(dynamic, 16)
+  for (int c = 0; c < nc; ++c) {
+    const double t_rel = c * period / nc;
+    const Eigen::Isometry3d T_world_lidar = traj_.Pose(t_scan + t_rel) * opt_.T_imu_lidar;
+    const Eigen::Matrix3d R = T_world_lidar.linear();
+    const double az = ColumnAzimuth(c);
+    const double ca = std::cos(az), sa = std::sin(az);
+    Ray ray;
+    ray.o = T_world_lidar.translation();
+    ray.tmin = 0.05;
+    ray.tmax = model_.max_range;
+    for (int r = 0; r < nr; ++r) {
+      Sample& s = samples[static_cast<size_t>(c) * nr + r];
+      s = Sample{0, 0, 0, 0, 0, 0};
+      const Eigen::Vector3d d_l(cos_el_[r] * ca, cos_el_[r] * sa, sin_el_[r]);
+      ray.d = R * d_l;
+      ray.key = HashKey(opt_.seed, static_cast<uint64_t>(k), static_cast<uint64_t>(c),
+                        static_cast<uint64_t>(r));
+      Hit hit;
+      if (!scene_.Intersect(ray, &hit)) continue;
+      const double cos_i = std::abs(hit.n.dot(ray.d));
+      // Weak echoes (dark, grazing) are lost before max range: the detectable range scales
+      // with the fourth root of the returned energy relative to a 50 % Lambertian target.
+      const double echo = std::max(hit.reflectivity * cos_i, 1e-6);
+      const double reach = model_.max_range * std::min(1.0, std::pow(echo / 0.5, 0.25));
+      if (hit.t > reach) continue;
+      if (KeyedUniform(ray.key, 1) < opt_.dropout) continue;
+      const double range = hit.t + opt_.range_noise * KeyedNormal(ray.key, 2);
+      if (range < model_.min_range || range > model_.max_range) continue;
+      s.x = static_cast<float>(range * d_l.x());
+      s.y = static_cast<float>(range * d_l.y());
+      s.z = static_cast<float>(range * d_l.z());
+      s.range = static_cast<float>(range);
+      s.reflectivity = hit.reflectivity;
+      const double jitter = 1.0 + 0.05 * KeyedNormal(ray.key, 3);
+      if (model_.layout == PointLayout::kVelodyne) {
+        // Velodyne's calibrated intensity: 0..255, integer-valued, mostly reflectivity.
+        s.intensity = static_cast<float>(std::clamp(
+            std::round(255.0 * hit.reflectivity * (0.35 + 0.65 * cos_i) * jitter), 0.0, 255.0));
+      } else {
+        // Ouster's signal: photon counts falling with range squared.
+        s.intensity = static_cast<float>(std::clamp(
+            3.0e5 * hit.reflectivity * cos_i * jitter / std::max(range * range, 1.0), 0.0,
+            65535.0));
+      }
+    }
+  }
+
+  CloudBuffer cloud;
+  cloud.stamp_ns = opt_.start_ns + static_cast<int64_t>(std::llround(t_scan * 1e9));
+  cloud.frame_id = opt_.frame_id;
+  if (model_.layout == PointLayout::kVelodyne) {
+    cloud.fields = {{"x", 0, kFloat32, 1},         {"y", 4, kFloat32, 1},
+                    {"z", 8, kFloat32, 1},         {"intensity", 16, kFloat32, 1},
+                    {"ring", 20, kUint16, 1},      {"time", 24, kFloat32, 1}};
+    cloud.point_step = 32;
+    size_t valid = 0;
+    for (const Sample& s : samples) valid += s.range > 0.0f;
+    cloud.height = 1;
+    cloud.width = static_cast<uint32_t>(valid);
+    cloud.row_step = cloud.width * cloud.point_step;
+    cloud.is_dense = true;
+    cloud.data.assign(static_cast<size_t>(cloud.row_step), 0);
+    uint8_t* dst = cloud.data.data();
+    for (int c = 0; c < nc; ++c) {
+      const float t_rel = static_cast<float>(c * period / nc);
+      for (int r = 0; r < nr; ++r) {
+        const Sample& s = samples[static_cast<size_t>(c) * nr + r];
+        if (!(s.range > 0.0f)) continue;
+        Put(dst, 0, s.x);
+        Put(dst, 4, s.y);
+        Put(dst, 8, s.z);
+        Put(dst, 16, s.intensity);
+        Put(dst, 20, static_cast<uint16_t>(r));
+        Put(dst, 24, t_rel);
+        dst += cloud.point_step;
+      }
+    }
+  } else {
+    cloud.fields = {{"x", 0, kFloat32, 1},          {"y", 4, kFloat32, 1},
+                    {"z", 8, kFloat32, 1},          {"intensity", 16, kFloat32, 1},
+                    {"t", 20, kUint32, 1},          {"reflectivity", 24, kUint16, 1},
+                    {"ring", 26, kUint16, 1},       {"ambient", 28, kUint16, 1},
+                    {"range", 32, kUint32, 1}};
+    cloud.point_step = 48;
+    cloud.height = static_cast<uint32_t>(nr);
+    cloud.width = static_cast<uint32_t>(nc);
+    cloud.row_step = cloud.width * cloud.point_step;
+    cloud.is_dense = false;
+    cloud.data.assign(static_cast<size_t>(cloud.row_step) * cloud.height, 0);
+    for (int r = 0; r < nr; ++r) {
+      for (int c = 0; c < nc; ++c) {
+        const Sample& s = samples[static_cast<size_t>(c) * nr + r];
+        uint8_t* dst = cloud.data.data() + (static_cast<size_t>(r) * nc + c) * cloud.point_step;
+        const uint32_t t_ns = static_cast<uint32_t>(std::llround(c * period / nc * 1e9));
+        Put(dst, 0, s.x);
+        Put(dst, 4, s.y);
+        Put(dst, 8, s.z);
+        Put(dst, 16, s.intensity);
+        Put(dst, 20, t_ns);
+        Put(dst, 24, static_cast<uint16_t>(std::lround(s.reflectivity * 255.0f)));
+        Put(dst, 26, static_cast<uint16_t>(r));
+        const uint64_t key = HashKey(opt_.seed, static_cast<uint64_t>(k), c, r);
+        Put(dst, 28, static_cast<uint16_t>(40 + 30 * KeyedUniform(key, 4)));
+        Put(dst, 32, static_cast<uint32_t>(std::lround(s.range * 1000.0f)));
+      }
+    }
+  }
+  return cloud;
+}
+
+}  // namespace ppf::sim

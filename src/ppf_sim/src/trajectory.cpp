@@ -1,0 +1,119 @@
+#include "ppf_sim/trajectory.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace ppf::sim {
+
+Trajectory::Trajectory(double knot_dt, std::vector<Eigen::Vector3d> pos_ctrl,
+                       std::vector<Eigen::Vector3d> euler_ctrl)
+    : dt_(knot_dt), pos_(std::move(pos_ctrl)), euler_(std::move(euler_ctrl)) {
+  if (pos_.size() < 4 || pos_.size() != euler_.size() || !(dt_ > 0.0)) {
+    throw std::invalid_argument("Trajectory: need >= 4 matching control points and dt > 0");
+  }
+  end_time_ = static_cast<double>(pos_.size() - 3) * dt_;
+}
+
+void Trajectory::SetShakes(std::vector<Shake> shakes, double start, double ramp) {
+  shakes_ = std::move(shakes);
+  shake_start_ = start;
+  shake_ramp_ = std::max(ramp, 1e-3);
+}
+
+void Trajectory::EvalChannels(double t, int order, double val[6], double d1[6],
+                              double d2[6]) const {
+  const int n_seg = static_cast<int>(pos_.size()) - 3;
+  double s = std::clamp(t, 0.0, end_time_) / dt_;
+  int k = static_cast<int>(std::floor(s));
+  if (k >= n_seg) k = n_seg - 1;
+  if (k < 0) k = 0;
+  const double u = s - k;
+  const double u2 = u * u, u3 = u2 * u, w = 1.0 - u;
+  const double b[4] = {w * w * w / 6.0, (3 * u3 - 6 * u2 + 4) / 6.0,
+                       (-3 * u3 + 3 * u2 + 3 * u + 1) / 6.0, u3 / 6.0};
+  const double db[4] = {-0.5 * w * w, 1.5 * u2 - 2 * u, -1.5 * u2 + u + 0.5, 0.5 * u2};
+  const double ddb[4] = {w, 3 * u - 2, -3 * u + 1, u};
+  // Outside [0, end] the curve is held constant: derivatives are zero there.
+  const bool inside = t >= 0.0 && t <= end_time_;
+  for (int c = 0; c < 6; ++c) {
+    val[c] = d1[c] = d2[c] = 0.0;
+  }
+  for (int j = 0; j < 4; ++j) {
+    const Eigen::Vector3d& e = euler_[k + j];
+    const Eigen::Vector3d& p = pos_[k + j];
+    for (int c = 0; c < 3; ++c) {
+      val[c] += b[j] * e[c];
+      val[3 + c] += b[j] * p[c];
+      if (inside && order >= 1) {
+        d1[c] += db[j] * e[c];
+        d1[3 + c] += db[j] * p[c];
+      }
+      if (inside && order >= 2) {
+        d2[c] += ddb[j] * e[c];
+        d2[3 + c] += ddb[j] * p[c];
+      }
+    }
+  }
+  for (int c = 0; c < 6; ++c) {
+    d1[c] /= dt_;
+    d2[c] /= dt_ * dt_;
+  }
+  if (shakes_.empty() || t <= shake_start_) return;
+  // Quintic smootherstep envelope: value, first and second derivative are continuous.
+  const double x = std::min((t - shake_start_) / shake_ramp_, 1.0);
+  double env = x * x * x * (x * (6 * x - 15) + 10);
+  double env1 = 0.0, env2 = 0.0;
+  if (x < 1.0) {
+    env1 = 30 * x * x * (x - 1) * (x - 1) / shake_ramp_;
+    env2 = 60 * x * (2 * x * x - 3 * x + 1) / (shake_ramp_ * shake_ramp_);
+  }
+  for (const Shake& sh : shakes_) {
+    const double w0 = 2.0 * M_PI * sh.freq_hz;
+    const double ph = w0 * t + sh.phase;
+    const double f = sh.amp * std::sin(ph);
+    const double f1 = sh.amp * w0 * std::cos(ph);
+    const double f2 = -sh.amp * w0 * w0 * std::sin(ph);
+    val[sh.channel] += env * f;
+    d1[sh.channel] += env1 * f + env * f1;
+    d2[sh.channel] += env2 * f + 2 * env1 * f1 + env * f2;
+  }
+}
+
+Eigen::Matrix3d EulerToRotation(const Eigen::Vector3d& e) {
+  return (Eigen::AngleAxisd(e[2], Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(e[1], Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(e[0], Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+Eigen::Vector3d EulerRatesToBodyRate(const Eigen::Vector3d& e, const Eigen::Vector3d& r) {
+  const double sr = std::sin(e[0]), cr = std::cos(e[0]);
+  const double sp = std::sin(e[1]), cp = std::cos(e[1]);
+  return {r[0] - r[2] * sp, r[1] * cr + r[2] * sr * cp, -r[1] * sr + r[2] * cr * cp};
+}
+
+TrajectoryState Trajectory::Evaluate(double t) const {
+  double val[6], d1[6], d2[6];
+  EvalChannels(t, 2, val, d1, d2);
+  TrajectoryState s;
+  s.t = t;
+  s.euler = {val[0], val[1], val[2]};
+  s.p = {val[3], val[4], val[5]};
+  s.v = {d1[3], d1[4], d1[5]};
+  s.a = {d2[3], d2[4], d2[5]};
+  s.R = EulerToRotation(s.euler);
+  s.omega = EulerRatesToBodyRate(s.euler, {d1[0], d1[1], d1[2]});
+  return s;
+}
+
+Eigen::Isometry3d Trajectory::Pose(double t) const {
+  double val[6], d1[6], d2[6];
+  EvalChannels(t, 0, val, d1, d2);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = EulerToRotation({val[0], val[1], val[2]});
+  T.translation() = Eigen::Vector3d(val[3], val[4], val[5]);
+  return T;
+}
+
+}  // namespace ppf::sim

@@ -1,0 +1,92 @@
+#!/usr/bin/env bash
+# Installs every system dependency of LIO-PPF from Debian 12 packages (idempotent) and builds the
+# colcon workspace in Release. Downloads nothing but Debian and npm packages.
+#
+#   scripts/setup.sh              install what is missing, then build
+#   scripts/setup.sh --deps-only  install only (used by docker/Dockerfile before copying sources)
+#   scripts/setup.sh --no-deps    build only
+#
+# Environment: PPF_BUILD_JOBS (default: number of cores) bounds compile parallelism.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+
+# Kept in one place: docker/Dockerfile and test/test_docker_files.py check against this list.
+PPF_DEBIAN_PACKAGES=(
+  build-essential cmake pkg-config git ca-certificates
+  colcon python3-colcon-cmake python3-colcon-package-selection python3-colcon-test-result
+  python3-colcon-metadata python3-colcon-recursive-crawl python3-colcon-parallel-executor
+  python3-colcon-bash python3-colcon-library-path python3-colcon-output python3-colcon-defaults
+  python3-colcon-package-information python3-colcon-pkg-config
+  libfastrtps-dev libfastcdr-dev fastddsgen
+  libeigen3-dev libpcl-dev libomp-dev libgtest-dev
+  libyaml-cpp-dev libsqlite3-dev sqlite3 liblz4-dev libzstd-dev
+  cyclonedds-dev cyclonedds-tools
+  python3-yaml nodejs npm
+)
+
+deps=1
+build=1
+case "${1:-}" in
+  --deps-only) build=0 ;;
+  --no-deps) deps=0 ;;
+  "") ;;
+  *) echo "usage: $0 [--deps-only|--no-deps]" >&2; exit 2 ;;
+esac
+
+log() { printf '\033[1m[setup]\033[0m %s\n' "$*"; }
+
+as_root() {
+  if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi
+}
+
+install_debian_packages() {
+  local missing=()
+  for p in "${PPF_DEBIAN_PACKAGES[@]}"; do
+    # nodejs/npm: any node >= 18 already on PATH will do (the machine image may ship its own).
+    if { [ "$p" = nodejs ] || [ "$p" = npm ]; } && command -v "${p/nodejs/node}" >/dev/null 2>&1; then
+      continue
+    fi
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p")
+  done
+  if [ ${#missing[@]} -eq 0 ]; then
+    log "Debian packages: all ${#PPF_DEBIAN_PACKAGES[@]} present"
+    return
+  fi
+  log "installing ${#missing[@]} Debian packages: ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  as_root apt-get update -qq
+  as_root apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+}
+
+install_npm_test_tools() {
+  # Independent MCAP reader/writer used by tests (@mcap/core, @foxglove/rosmsg2-serialization).
+  [ -f test/js/package-lock.json ] || return 0
+  if [ -d test/js/node_modules ] && [ test/js/node_modules/.package-lock.json -nt test/js/package-lock.json ]; then
+    log "npm test tools: up to date"
+    return
+  fi
+  log "installing npm test tools (test/js)"
+  npm ci --prefix test/js --no-audit --no-fund --loglevel=error >/dev/null
+}
+
+build_workspace() {
+  local jobs="${PPF_BUILD_JOBS:-$(nproc)}"
+  log "building the workspace (Release, ${jobs} jobs)"
+  # One package at a time with all cores each: PCL- and Eigen-heavy translation units need the
+  # memory more than they need package-level parallelism.
+  MAKEFLAGS="-j${jobs}" colcon build \
+    --parallel-workers 1 \
+    --event-handlers console_cohesion- console_stderr+ status- \
+    --cmake-args -DCMAKE_BUILD_TYPE=Release
+  log "built: source install/setup.bash to use ppf_node, ppf_sim, ppf_offline, ppf_eval, ..."
+}
+
+if [ "$deps" -eq 1 ]; then
+  install_debian_packages
+  install_npm_test_tools
+fi
+if [ "$build" -eq 1 ]; then
+  build_workspace
+fi

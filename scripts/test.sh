@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Sets up (Debian packages, npm test tools, Release build), runs every test with `colcon test`,
+# prints one line per test and ends with 'N passed, M failed'. Exits non-zero on any failure.
+set -uo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+
+scripts/setup.sh || { echo "setup/build failed"; echo "0 passed, 1 failed"; exit 1; }
+
+# colcon's setup scripts reference unset variables; source them without nounset.
+set +u
+# shellcheck disable=SC1091
+source install/setup.bash
+set -u
+
+rm -rf build/*/Testing  # results of earlier runs must not be counted again
+echo "[test] running colcon test"
+colcon test --parallel-workers 1 \
+  --event-handlers console_cohesion- console_direct- status- \
+  --ctest-args --timeout 600 >log/colcon_test_console.log 2>&1
+colcon_rc=$?
+
+/usr/bin/python3 scripts/test_summary.py build
+summary_rc=$?
+if [ $colcon_rc -ne 0 ]; then
+  echo "colcon test itself failed (exit $colcon_rc): see log/colcon_test_console.log"
+  exit 1
+fi
+exit $summary_rc

@@ -1,0 +1,108 @@
+"""The Docker files cannot be built here (no Docker engine on CI machines), so they are checked
+against the set-up script CI runs: same base distribution, same script, nothing fetched around it,
+and a compose file with the settings Fast DDS needs in containers."""
+import os
+import re
+import shlex
+import unittest
+
+import yaml
+
+ROOT = os.environ.get("PPF_REPO_ROOT", os.path.join(os.path.dirname(__file__), "..", ".."))
+
+
+def read(rel):
+    with open(os.path.join(ROOT, rel)) as f:
+        return f.read()
+
+
+def dockerfile_instructions(text):
+    """(INSTRUCTION, argument) pairs with line continuations joined and comments dropped."""
+    joined = re.sub(r"\\\n", " ", text)
+    out = []
+    for line in joined.splitlines():
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        word, _, rest = line.partition(" ")
+        out.append((word.upper(), rest.strip()))
+    return out
+
+
+class DockerfileTest(unittest.TestCase):
+    def setUp(self):
+        self.ins = dockerfile_instructions(read("docker/Dockerfile"))
+
+    def test_parses_into_known_instructions(self):
+        known = {"FROM", "ENV", "WORKDIR", "COPY", "RUN", "ENTRYPOINT", "CMD", "ARG", "LABEL", "EXPOSE"}
+        self.assertTrue(self.ins)
+        for word, arg in self.ins:
+            self.assertIn(word, known, f"unknown instruction {word}")
+            self.assertTrue(arg, f"{word} without argument")
+        self.assertEqual(self.ins[0][0], "FROM")
+
+    def test_base_is_debian_12_like_the_setup_script_expects(self):
+        base = self.ins[0][1]
+        self.assertIn(base, ("debian:12", "debian:bookworm", "debian:12-slim", "debian:bookworm-slim"))
+
+    def test_steps_are_the_setup_script(self):
+        runs = [arg for word, arg in self.ins if word == "RUN"]
+        self.assertTrue(any("scripts/setup.sh --deps-only" in r for r in runs), runs)
+        self.assertTrue(any("scripts/setup.sh --no-deps" in r for r in runs), runs)
+        for r in runs:
+            # Everything is installed by the script from Debian packages: no side channels.
+            for forbidden in ("apt-get install", "curl ", "wget ", "pip install", "git clone"):
+                self.assertNotIn(forbidden, r, f"Dockerfile step bypasses scripts/setup.sh: {r}")
+
+    def test_setup_script_flags_exist(self):
+        script = read("scripts/setup.sh")
+        self.assertIn("--deps-only", script)
+        self.assertIn("--no-deps", script)
+
+    def test_default_command_starts_the_node_with_a_shipped_config(self):
+        cmd = dict(self.ins)["CMD"]
+        self.assertIn("ppf_node", cmd)
+        config = re.search(r'/opt/lio-ppf/(config/[^"\s]+)', cmd).group(1)
+        self.assertTrue(os.path.isfile(os.path.join(ROOT, config)), f"{config} missing")
+        entry = dict(self.ins)["ENTRYPOINT"]
+        self.assertIn("docker/entrypoint.sh", entry)
+        self.assertTrue(os.access(os.path.join(ROOT, "docker/entrypoint.sh"), os.X_OK))
+
+    def test_dds_profile_named_in_the_image_exists(self):
+        env = " ".join(arg for word, arg in self.ins if word == "ENV")
+        m = re.search(r"FASTRTPS_DEFAULT_PROFILES_FILE=/opt/lio-ppf/(\S+)", env)
+        self.assertIsNotNone(m)
+        self.assertTrue(os.path.isfile(os.path.join(ROOT, m.group(1))), f"{m.group(1)} missing")
+
+
+class ComposeTest(unittest.TestCase):
+    def setUp(self):
+        self.doc = yaml.safe_load(read("docker/compose.yaml"))
+
+    def test_node_and_replay_services(self):
+        services = self.doc["services"]
+        self.assertIn("node", services)
+        self.assertIn("replay", services)
+        self.assertIn("ppf_node", " ".join(services["node"]["command"]))
+        self.assertIn("ppf_replay", " ".join(services["replay"]["command"]))
+        self.assertEqual(services["node"]["build"]["dockerfile"], "docker/Dockerfile")
+
+    def test_fast_dds_can_share_memory_and_discover(self):
+        for name, svc in self.doc["services"].items():
+            # Shared memory needs a common /dev/shm (ipc: host or a large shm_size); discovery
+            # between containers needs a common network.
+            self.assertTrue(svc.get("ipc") == "host" or "shm_size" in svc, f"{name}: no shared /dev/shm")
+            self.assertEqual(svc.get("network_mode"), "host", f"{name}: not on the host network")
+            profile = svc["environment"]["FASTRTPS_DEFAULT_PROFILES_FILE"]
+            rel = profile.replace("/opt/lio-ppf/", "")
+            self.assertTrue(os.path.isfile(os.path.join(ROOT, rel)), f"{name}: {rel} missing")
+
+    def test_commands_use_installed_tools_with_documented_flags(self):
+        replay = " ".join(self.doc["services"]["replay"]["command"])
+        words = shlex.split(replay.replace(";", " ; "))
+        self.assertIn("--scene", words)
+        self.assertIn("--bag", words)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -10,6 +10,7 @@
 #include <optional>
 #include <unordered_set>
 
+#include "compression.hpp"
 #include "file_io.hpp"
 #include "mcap_format.hpp"
 #include "ppf_bag/bag.hpp"
@@ -87,6 +88,15 @@ class Writer::Impl {
  public:
   Impl(const std::string& dir, const WriterOptions& options) : dir_(dir) {
     info_.storage = options.storage;
+    const bool mcap = options.storage == Storage::kMcap;
+    // Validate options before touching the file system.
+    if (mcap && !detail::IsSupportedCompression(options.compression)) {
+      throw BagError("unsupported MCAP compression '" + options.compression +
+                     "' (expected none, lz4 or zstd)");
+    }
+    if (!mcap && !options.compression.empty() && options.compression != "none") {
+      throw BagError("sqlite3 storage does not support compression '" + options.compression + "'");
+    }
     std::error_code ec;
     if (fs::exists(dir, ec)) {
       if (!fs::is_directory(dir, ec) || !fs::is_empty(dir, ec)) {
@@ -95,16 +105,11 @@ class Writer::Impl {
     } else if (!fs::create_directories(dir, ec)) {
       throw BagError("cannot create bag directory '" + dir + "': " + ec.message());
     }
-    const bool mcap = options.storage == Storage::kMcap;
     file_ = BagName(dir) + "_0" + (mcap ? ".mcap" : ".db3");
     path_ = (fs::path(dir) / file_).string();
     if (mcap) {
       storage_ = detail::MakeMcapWriter(path_, options);
     } else {
-      if (!options.compression.empty() && options.compression != "none") {
-        throw BagError("sqlite3 storage does not support compression '" + options.compression +
-                       "'");
-      }
       storage_ = detail::MakeSqliteWriter(path_);
     }
   }

@@ -212,12 +212,13 @@ class McapWriter final : public StorageWriter {
       s.U64(g.length);
       s.EndRecord(at);
     }
-    at = s.BeginRecord(mcap::kFooter);
+    // Length written up front: the summary CRC covers the footer's opcode and length too.
+    s.U8(mcap::kFooter);
+    s.U64(mcap::kFooterContent);
     s.U64(summary_start);
     s.U64(summary_offset_start);
     const uint32_t summary_crc = Crc32(s.buf.data(), s.buf.size());
     s.U32(summary_crc);
-    s.EndRecord(at);
     s.Bytes(mcap::kMagic, sizeof(mcap::kMagic));
     Emit(s.buf, false);
     const bool flush_failed = std::fflush(file_) != 0;

@@ -4,6 +4,7 @@
 //   ppf_offline --bag DIR --config FILE --mode knn|ppf --out traj.tum --stats stats.csv
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -16,7 +17,7 @@
 #include "ppf_core/config_yaml.hpp"
 #include "ppf_core/evaluation.hpp"
 #include "ppf_core/lio_ppf.hpp"
-#include "ppf_tools/bag_source.hpp"
+#include "ppf_tools/offline_runner.hpp"
 #include "ppf_tools/scan_stats.hpp"
 
 namespace {
@@ -141,53 +142,33 @@ int main(int argc, char** argv) {
     if (level >= ppf::LogLevel::kInfo) std::cerr << "\nppf_offline: " << msg << "\n";
   };
 
-  ppf::LioPpf lio(config);
-  std::vector<ppf::ScanResult> results;
-  ppf::Trajectory trajectory;
   ProgressBar progress(!args.quiet);
-  uint64_t total_scans = 0;
-  double core_ms = 0.0;
-
-  auto consume = [&](std::vector<ppf::ScanResult>&& batch) {
-    for (auto& r : batch) {
-      core_ms += r.timings.total;
-      if (r.pose_valid) {
-        trajectory.push_back({r.stamp_s, args.frame == "imu" ? r.T_world_imu : r.T_world_lidar});
-      }
-      results.push_back(std::move(r));
-    }
-    progress.Update(results.size(), total_scans,
-                    core_ms > 0 ? 1000.0 * static_cast<double>(results.size()) / core_ms : 0.0);
-  };
-
-  const auto t0 = std::chrono::steady_clock::now();
-  ppf::tools::BagSourceOptions source_options{args.points_topic, args.imu_topic};
-  ppf::tools::BagSourceCallbacks callbacks;
-  callbacks.on_topics_resolved = [&](const ppf::tools::BagSourceStats& s) {
-    total_scans = s.total_scans_in_bag;
+  ppf::tools::OfflineOptions options;
+  options.source = {args.points_topic, args.imu_topic};
+  options.lidar_frame = args.frame == "lidar";
+  options.on_topics_resolved = [&](const ppf::tools::BagSourceStats& s) {
     if (!args.quiet) {
-      std::cerr << "ppf_offline: " << args.bag << ": " << s.points_topic << " (" << total_scans
-                << " scans), " << s.imu_topic << ", mode "
+      std::cerr << "ppf_offline: " << args.bag << ": " << s.points_topic << " ("
+                << s.total_scans_in_bag << " scans), " << s.imu_topic << ", mode "
                 << (config.mode == ppf::Mode::kPpf ? "ppf" : "knn") << "\n";
     }
   };
-  callbacks.on_imu = [&](const ppf::ImuSample& s) { lio.AddImu(s); };
-  callbacks.on_scan = [&](const ppf::CloudView& v) {
-    lio.AddScan(v);
-    consume(lio.Process());
+  options.on_progress = [&](size_t done, uint64_t total, double core_ms) {
+    progress.Update(done, total, core_ms > 0 ? 1000.0 * static_cast<double>(done) / core_ms : 0.0);
   };
-  callbacks.on_error = [](const std::string& e) { std::cerr << "\nppf_offline: skipped " << e << "\n"; };
+  options.on_error = [](const std::string& e) { std::cerr << "\nppf_offline: skipped " << e << "\n"; };
 
-  ppf::tools::BagSourceStats source_stats;
+  ppf::tools::OfflineRun run;
   try {
-    source_stats = ppf::tools::StreamBag(args.bag, source_options, callbacks);
+    run = ppf::tools::RunOffline(args.bag, config, options);
   } catch (const std::exception& e) {
     Fail(e.what());
   }
-  consume(lio.Process(/*flush=*/true));
   progress.Finish();
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto& results = run.results;
+  const auto& trajectory = run.trajectory;
+  const auto& source_stats = run.source;
+  const double wall_s = run.wall_s;
 
   const bool ok = args.format == "tum" ? ppf::WriteTum(args.out, trajectory)
                                        : ppf::WriteKitti(args.out, trajectory);

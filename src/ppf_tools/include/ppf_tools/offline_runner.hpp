@@ -1,0 +1,35 @@
+// Runs the core over a whole bag: shared by ppf_offline and the comparison benchmark so both
+// measure exactly the same loop.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "ppf_core/evaluation.hpp"
+#include "ppf_core/lio_ppf.hpp"
+#include "ppf_tools/bag_source.hpp"
+
+namespace ppf::tools {
+
+struct OfflineRun {
+  std::vector<ScanResult> results;  // one per scan, in order
+  Trajectory trajectory;            // poses of scans with pose_valid, in `frame`
+  BagSourceStats source;
+  double wall_s = 0.0;
+};
+
+struct OfflineOptions {
+  BagSourceOptions source;
+  bool lidar_frame = false;  // trajectory of T_world_lidar instead of T_world_imu
+  // Called after every processed batch: (scans done, scans in bag, core ms so far).
+  std::function<void(size_t, uint64_t, double)> on_progress;
+  std::function<void(const BagSourceStats&)> on_topics_resolved;
+  std::function<void(const std::string&)> on_error;  // malformed message skipped
+};
+
+// Throws ppf::bag::BagError if the bag cannot be read.
+OfflineRun RunOffline(const std::string& bag_path, const Config& config,
+                      const OfflineOptions& options = OfflineOptions());
+
+}  // namespace ppf::tools

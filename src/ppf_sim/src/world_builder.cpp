@@ -316,9 +316,8 @@ void PopulateRamps(Scene& scene, const std::vector<PathSample>& path, const Path
                    const HeightField& hf, Rng& rng) {
   const auto st = Stations(path, 1.0);
   const int n = static_cast<int>(st.size());
-  int side = 1;
-  for (int k = rng.UniformInt(5, 15); k < n; k += rng.UniformInt(12, 30)) {
-    side = -side;
+  for (int k = rng.UniformInt(0, 8); k < n; k += rng.UniformInt(8, 18)) {
+    const int side = rng.Uniform() < 0.5 ? -1 : 1;
     const double alpha = rng.Uniform(3.0, 12.0) * M_PI / 180.0;  // included angle with ground
     const double len = rng.Uniform(8.0, 16.0), width = rng.Uniform(5.0, 10.0);
     const double plat = rng.Uniform(4.0, 10.0);
@@ -501,7 +500,9 @@ World BuildWorld(const WorldOptions& opt) {
   world.speed = speed;
   Rng rng(opt.seed, 0x5CE7Eu);
   const int n_samples = static_cast<int>(std::ceil((opt.duration + 3.0) / kKnotDt)) + 4;
-  const double move_time = opt.static_time + 2 * kKnotDt;
+  // The spline reaches 2 knots back and the suspension filter 3 more: start moving late enough
+  // that the curve is exactly constant until static_time + 0.1 s.
+  const double move_time = opt.static_time + 6 * kKnotDt;
 
   std::vector<PathSample> path;
   if (opt.scene == "indoor") {
@@ -592,7 +593,7 @@ World BuildWorld(const WorldOptions& opt) {
   world.scene.Build(4.0);
   world.trajectory = Trajectory(kKnotDt, std::move(pos), std::move(euler));
   world.trajectory.SetShakes(handheld ? HandheldShakes(rng, opt.max_rate_deg) : CarShakes(rng),
-                             opt.static_time, 1.5);
+                             opt.static_time + 0.1, 1.5);
   return world;
 }
 

@@ -1,0 +1,47 @@
+// An infinite 3D plane f = [n; d] with unit normal n: a point p lies on it iff n.p + d = 0.
+//
+// Planes move between frames with Theorem 1 of the paper, f_to = (T_to_from^-1)^T f_from, which
+// for a rigid transform keeps n unit length, so signed distances stay metric in every frame.
+#pragma once
+
+#include <optional>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace ppf {
+
+struct Plane {
+  Eigen::Vector3d n = Eigen::Vector3d::UnitZ();  // unit normal
+  double d = 0.0;                                // offset: n.p + d = 0 on the plane
+
+  Eigen::Vector4d Coefficients() const { return Eigen::Vector4d(n.x(), n.y(), n.z(), d); }
+
+  // Signed point-to-plane distance (metres, positive on the side n points to).
+  double SignedDistance(const Eigen::Vector3d& p) const { return n.dot(p) + d; }
+  float SignedDistance(const Eigen::Vector3f& p) const {
+    return static_cast<float>(n.x()) * p.x() + static_cast<float>(n.y()) * p.y() +
+           static_cast<float>(n.z()) * p.z() + static_cast<float>(d);
+  }
+  double Distance(const Eigen::Vector3d& p) const;
+
+  // The same plane with the opposite normal (n, d) -> (-n, -d).
+  Plane Flipped() const { return Plane{-n, -d}; }
+
+  // Normalises f = [a b c e] to a unit normal. Empty for a (near-)zero or non-finite normal.
+  static std::optional<Plane> FromCoefficients(const Eigen::Vector4d& f);
+
+  // Plane through three points. Empty if |(p1-p0)x(p2-p0)| < min_cross_norm (collinear or
+  // coincident samples): the normal would be numerically meaningless or a division by zero.
+  static std::optional<Plane> FromPoints(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
+                                         const Eigen::Vector3d& p2, double min_cross_norm);
+};
+
+// Theorem 1: the plane expressed in frame `to`, given T_to_from (p_to = T_to_from * p_from).
+// Closed form of f_to = (T_to_from^-1)^T f_from for a rigid T: n_to = R n, d_to = d - n_to.t.
+Plane TransformPlane(const Eigen::Isometry3d& T_to_from, const Plane& plane_from);
+
+// Angle between the planes' normals in radians, ignoring orientation (in [0, pi/2]).
+double PlaneAngle(const Plane& a, const Plane& b);
+
+}  // namespace ppf

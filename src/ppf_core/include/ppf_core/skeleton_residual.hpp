@@ -1,0 +1,61 @@
+// Skeleton residuals (paper Eq. 10): each skeleton point (Omega) is matched to the nearest plane
+// of the world-frame window F, and only if that distance is below the gate eps. There is no kNN
+// search: the search space is <= window_size planes instead of the local point map.
+//
+// Matches are recomputed from scratch at every call (every IEKF iteration): no per-point
+// "selected" flag survives between iterations, unlike the reference code where a stale flag kept
+// matches from an earlier linearisation point.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "ppf_core/plane.hpp"
+#include "ppf_core/residual_provider.hpp"
+
+namespace ppf {
+
+class SkeletonWindow;
+
+struct SkeletonMatch {
+  int point_index = -1;          // index into the scan's points
+  int plane_index = -1;          // index into the window planes passed in
+  double signed_distance = 0.0;  // n . (T_world_lidar p) + d, |.| < eps
+};
+
+// Eq. 10 for the points `skeleton_indices` of `points_lidar` at pose T_world_lidar. Appends one
+// match per gated point to *matches (cleared first), in ascending point order.
+void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
+                            const std::vector<int>& skeleton_indices,
+                            const Eigen::Isometry3d& T_world_lidar,
+                            const std::vector<Plane>& window_world, double eps,
+                            std::vector<SkeletonMatch>* matches);
+
+// Residual rows of the skeleton points of a ScanFrame (labels == kSkeleton) against a window.
+// The window is read at BeginScan (F from the previous scan, as in the reference pipeline; this
+// scan's planes enter the window only after the update, see PpfScanSplitter).
+class SkeletonResidualProvider : public ResidualProvider {
+ public:
+  SkeletonResidualProvider(const SkeletonWindow* window, double eps);
+  std::string Name() const override { return "skeleton"; }
+  void BeginScan(const ScanFrame& frame) override;
+  void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
+                   std::vector<PointPlaneRow>* rows) override;
+  void Reset() override;
+
+  // Matches of the last ComputeRows call (diagnostics and tests).
+  const std::vector<SkeletonMatch>& last_matches() const { return matches_; }
+
+ private:
+  const SkeletonWindow* window_;
+  double eps_;
+  const ScanFrame* frame_ = nullptr;
+  std::vector<Plane> planes_world_;
+  std::vector<int> skeleton_indices_;
+  std::vector<SkeletonMatch> matches_;
+};
+
+}  // namespace ppf

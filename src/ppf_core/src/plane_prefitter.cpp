@@ -1,0 +1,169 @@
+#include "ppf_core/plane_prefitter.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "ppf_core/ipca.hpp"
+#include "ppf_core/ransac.hpp"
+
+namespace ppf {
+
+const char* PrefitStopName(PrefitStop stop) {
+  switch (stop) {
+    case PrefitStop::kEmptyInput:
+      return "empty_input";
+    case PrefitStop::kFewRemaining:
+      return "few_remaining";
+    case PrefitStop::kMaxPlanes:
+      return "max_planes";
+    case PrefitStop::kRansacFailed:
+      return "ransac_failed";
+  }
+  return "unknown";
+}
+
+PlanePrefitter::PlanePrefitter(const PpfConfig& config) : config_(config) {
+  ValidatePpfConfig(&config_);
+}
+
+void PlanePrefitter::Accept(const Plane& plane, bool from_guess, int64_t track_id,
+                            int ipca_iterations, PrefitResult* result) {
+  SplitSandwich(remaining_, plane, config_.delta, config_.semi_band_factor, &split_);
+  const int plane_id = static_cast<int>(result->planes.size());
+  FittedPlane fitted;
+  fitted.plane = plane;
+  fitted.from_guess = from_guess;
+  fitted.guess_track_id = from_guess ? track_id : -1;
+  fitted.ipca_iterations = ipca_iterations;
+  fitted.num_inliers = static_cast<int>(split_.strict.size());
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (int pos : split_.strict) {
+    sum += remaining_[pos].cast<double>();
+    result->skeleton_indices.push_back(remaining_index_[pos]);
+    result->skeleton_plane.push_back(plane_id);
+  }
+  if (!split_.strict.empty()) fitted.centroid = sum / static_cast<double>(split_.strict.size());
+  for (int pos : split_.semi) result->discarded_indices.push_back(remaining_index_[pos]);
+  result->planes.push_back(fitted);
+
+  next_points_.clear();
+  next_index_.clear();
+  next_points_.reserve(split_.outliers.size());
+  next_index_.reserve(split_.outliers.size());
+  for (int pos : split_.outliers) {
+    next_points_.push_back(remaining_[pos]);
+    next_index_.push_back(remaining_index_[pos]);
+  }
+  remaining_.swap(next_points_);
+  remaining_index_.swap(next_index_);
+}
+
+void PlanePrefitter::Fit(const std::vector<Eigen::Vector3f>& points,
+                         const std::vector<PlaneGuess>& guesses, PrefitResult* result) {
+  *result = PrefitResult{};
+#ifdef _OPENMP
+  const int saved_threads = omp_get_max_threads();
+  if (config_.num_threads > 0) omp_set_num_threads(config_.num_threads);
+#endif
+
+  remaining_.clear();
+  remaining_index_.clear();
+  remaining_.reserve(points.size());
+  remaining_index_.reserve(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (points[i].allFinite()) {
+      remaining_.push_back(points[i]);
+      remaining_index_.push_back(static_cast<int>(i));
+    } else {
+      result->discarded_indices.push_back(static_cast<int>(i));
+    }
+  }
+  const size_t input = remaining_.size();
+  const double min_remaining = config_.min_remaining_ratio * static_cast<double>(input);
+  const int least = std::max(3, config_.plane_least_inliers);
+  const int max_planes = config_.max_planes_per_scan;
+
+  // Returns true (and sets the reason) when fitting must stop before the next plane.
+  auto should_stop = [&]() {
+    if (remaining_.size() < 3) {
+      result->stop = result->planes.empty() ? PrefitStop::kEmptyInput : PrefitStop::kFewRemaining;
+      return true;
+    }
+    if (static_cast<double>(remaining_.size()) < min_remaining) {
+      result->stop = PrefitStop::kFewRemaining;
+      return true;
+    }
+    if (static_cast<int>(result->planes.size()) >= max_planes) {
+      result->stop = PrefitStop::kMaxPlanes;
+      return true;
+    }
+    return false;
+  };
+
+  bool stopped = should_stop();
+  if (config_.incremental_fitting) {
+    for (const PlaneGuess& guess : guesses) {
+      if (stopped || (stopped = should_stop())) break;
+      ++result->guesses_tried;
+      // Cheap check first: most wrong guesses die here without any PCA.
+      if (CountPlaneInliers(remaining_, guess.plane, config_.delta) < least) continue;
+      const IpcaResult refined = RefinePlaneIpca(remaining_, guess.plane, config_.delta,
+                                                 config_.ipca_iterations_guess, least);
+      if (!refined.success) continue;
+      ++result->guesses_accepted;
+      Accept(refined.plane, true, guess.track_id, refined.iterations, result);
+    }
+  }
+
+  RansacParams params;
+  params.delta = config_.delta;
+  params.min_inliers = least;
+  params.max_iterations = config_.ransac_max_iterations;
+  params.confidence = config_.ransac_confidence;
+  params.max_degenerate_samples = config_.ransac_max_degenerate_samples;
+  params.min_sample_area = config_.ransac_min_sample_area;
+  SplitMix64 rng(config_.ransac_seed);
+  while (!stopped && !(stopped = should_stop())) {
+    ++result->ransac_runs;
+    const RansacResult fit = FitPlaneRansac(remaining_, params, &rng);
+    result->ransac_iterations += fit.iterations;
+    if (!fit.success) {
+      result->stop = PrefitStop::kRansacFailed;
+      break;
+    }
+    const IpcaResult refined =
+        RefinePlaneIpca(remaining_, fit.plane, config_.delta, config_.ipca_iterations_new, least);
+    if (refined.success) {
+      Accept(refined.plane, false, -1, refined.iterations, result);
+      continue;
+    }
+    // Ambiguous surface (oscillating or collapsing refinement): no skeleton plane here. Its band
+    // goes to the scattered set, where kNN handles it, and fitting continues on the rest.
+    ++result->refine_failures;
+    SplitSandwich(remaining_, fit.plane, config_.delta, 1.0, &split_);
+    for (int pos : split_.strict) result->scattered_indices.push_back(remaining_index_[pos]);
+    next_points_.clear();
+    next_index_.clear();
+    for (int pos : split_.outliers) {
+      next_points_.push_back(remaining_[pos]);
+      next_index_.push_back(remaining_index_[pos]);
+    }
+    remaining_.swap(next_points_);
+    remaining_index_.swap(next_index_);
+  }
+
+  result->scattered_indices.insert(result->scattered_indices.end(), remaining_index_.begin(),
+                                   remaining_index_.end());
+  std::sort(result->scattered_indices.begin(), result->scattered_indices.end());
+  std::sort(result->discarded_indices.begin(), result->discarded_indices.end());
+#ifdef _OPENMP
+  if (config_.num_threads > 0) omp_set_num_threads(saved_threads);
+#endif
+}
+
+}  // namespace ppf

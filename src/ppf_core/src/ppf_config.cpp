@@ -1,0 +1,80 @@
+#include "ppf_core/ppf_config.hpp"
+
+#include <cmath>
+#include <sstream>
+
+namespace ppf {
+
+PpfConfig PpfConfigForBeams(int beams) {
+  PpfConfig c;
+  // After 0.5 m downsampling a 16- and a 32-beam scan both keep a few thousand points; the
+  // reference configs use 150 for both. 64 beams keep ~3x more points on the same surfaces.
+  if (beams >= 96) {
+    c.plane_least_inliers = 600;
+    c.incremental_fitting = true;
+  } else if (beams >= 48) {
+    c.plane_least_inliers = 400;
+    c.incremental_fitting = true;
+  } else {
+    c.plane_least_inliers = 150;
+    c.incremental_fitting = false;
+  }
+  return c;
+}
+
+namespace {
+
+template <typename T>
+void Fix(bool bad, T* value, T fallback, const char* name, std::vector<std::string>* notes) {
+  if (!bad) return;
+  std::ostringstream msg;
+  msg << "ppf." << name << " = " << *value << " is invalid; using " << fallback;
+  notes->push_back(msg.str());
+  *value = fallback;
+}
+
+bool BadPositive(double v) { return !std::isfinite(v) || v <= 0.0; }
+
+}  // namespace
+
+std::vector<std::string> ValidatePpfConfig(PpfConfig* c) {
+  const PpfConfig d;  // defaults
+  std::vector<std::string> notes;
+  Fix(BadPositive(c->delta), &c->delta, d.delta, "delta", &notes);
+  Fix(!std::isfinite(c->semi_band_factor) || c->semi_band_factor < 1.0, &c->semi_band_factor,
+      d.semi_band_factor, "semi_band_factor", &notes);
+  Fix(BadPositive(c->point_to_plane_thresh), &c->point_to_plane_thresh, d.point_to_plane_thresh,
+      "point_to_plane_thresh", &notes);
+  Fix(c->plane_least_inliers < 3, &c->plane_least_inliers, d.plane_least_inliers,
+      "plane_least_inliers", &notes);
+  Fix(c->max_planes_per_scan < 0, &c->max_planes_per_scan, d.max_planes_per_scan,
+      "max_planes_per_scan", &notes);
+  Fix(!std::isfinite(c->min_remaining_ratio) || c->min_remaining_ratio < 0.0 ||
+          c->min_remaining_ratio > 1.0,
+      &c->min_remaining_ratio, d.min_remaining_ratio, "min_remaining_ratio", &notes);
+  Fix(c->ransac_max_iterations < 1, &c->ransac_max_iterations, d.ransac_max_iterations,
+      "ransac_max_iterations", &notes);
+  Fix(!std::isfinite(c->ransac_confidence) || c->ransac_confidence <= 0.0 ||
+          c->ransac_confidence >= 1.0,
+      &c->ransac_confidence, d.ransac_confidence, "ransac_confidence", &notes);
+  Fix(c->ransac_max_degenerate_samples < 1, &c->ransac_max_degenerate_samples,
+      d.ransac_max_degenerate_samples, "ransac_max_degenerate_samples", &notes);
+  Fix(!std::isfinite(c->ransac_min_sample_area) || c->ransac_min_sample_area < 0.0,
+      &c->ransac_min_sample_area, d.ransac_min_sample_area, "ransac_min_sample_area", &notes);
+  Fix(c->ipca_iterations_new < 0, &c->ipca_iterations_new, d.ipca_iterations_new,
+      "ipca_iterations_new", &notes);
+  Fix(c->ipca_iterations_guess < 0, &c->ipca_iterations_guess, d.ipca_iterations_guess,
+      "ipca_iterations_guess", &notes);
+  Fix(c->window_size < 0, &c->window_size, d.window_size, "window_size", &notes);
+  Fix(c->window_max_missed_scans < 0, &c->window_max_missed_scans, d.window_max_missed_scans,
+      "window_max_missed_scans", &notes);
+  Fix(!std::isfinite(c->track_max_angle_deg) || c->track_max_angle_deg < 0.0 ||
+          c->track_max_angle_deg > 90.0,
+      &c->track_max_angle_deg, d.track_max_angle_deg, "track_max_angle_deg", &notes);
+  Fix(!std::isfinite(c->track_max_offset) || c->track_max_offset < 0.0, &c->track_max_offset,
+      d.track_max_offset, "track_max_offset", &notes);
+  Fix(c->num_threads < 0, &c->num_threads, d.num_threads, "num_threads", &notes);
+  return notes;
+}
+
+}  // namespace ppf

@@ -1,0 +1,60 @@
+#include <cmath>
+#include <limits>
+
+#include <gtest/gtest.h>
+
+#include "ppf_core/ppf_config.hpp"
+
+namespace ppf {
+namespace {
+
+TEST(PpfConfig, DefaultsScaleWithBeamCount) {
+  EXPECT_EQ(PpfConfigForBeams(16).plane_least_inliers, 150);
+  EXPECT_EQ(PpfConfigForBeams(32).plane_least_inliers, 150);
+  EXPECT_EQ(PpfConfigForBeams(64).plane_least_inliers, 400);
+  EXPECT_GT(PpfConfigForBeams(128).plane_least_inliers, 400);
+  EXPECT_FALSE(PpfConfigForBeams(16).incremental_fitting);
+  EXPECT_FALSE(PpfConfigForBeams(32).incremental_fitting);
+  EXPECT_TRUE(PpfConfigForBeams(64).incremental_fitting);
+  EXPECT_TRUE(PpfConfigForBeams(128).incremental_fitting);
+  EXPECT_EQ(PpfConfigForBeams(0).plane_least_inliers, 150);  // unknown -> smallest class
+  const PpfConfig d;
+  EXPECT_DOUBLE_EQ(d.delta, 0.1);
+  EXPECT_DOUBLE_EQ(d.delta * d.semi_band_factor, 0.4);
+  EXPECT_DOUBLE_EQ(d.point_to_plane_thresh, 0.2);
+  EXPECT_EQ(d.max_planes_per_scan, 5);
+  EXPECT_EQ(d.window_size, 5);
+  EXPECT_EQ(d.ipca_iterations_new, 3);
+  EXPECT_EQ(d.ipca_iterations_guess, 5);
+  EXPECT_EQ(d.ransac_max_iterations, 300);
+  EXPECT_DOUBLE_EQ(d.min_remaining_ratio, 0.25);
+}
+
+TEST(PpfConfig, DefaultsAreValid) {
+  for (int beams : {16, 32, 64, 128}) {
+    PpfConfig c = PpfConfigForBeams(beams);
+    EXPECT_TRUE(ValidatePpfConfig(&c).empty()) << beams;
+  }
+}
+
+TEST(PpfConfig, ValidationRepairsNonsense) {
+  PpfConfig c;
+  c.delta = -1.0;
+  c.semi_band_factor = std::numeric_limits<double>::quiet_NaN();
+  c.plane_least_inliers = 0;
+  c.ransac_confidence = 1.0;
+  c.min_remaining_ratio = 2.0;
+  c.window_size = -3;
+  const auto notes = ValidatePpfConfig(&c);
+  EXPECT_EQ(notes.size(), 6u);
+  const PpfConfig d;
+  EXPECT_EQ(c.delta, d.delta);
+  EXPECT_EQ(c.semi_band_factor, d.semi_band_factor);
+  EXPECT_EQ(c.plane_least_inliers, d.plane_least_inliers);
+  EXPECT_EQ(c.ransac_confidence, d.ransac_confidence);
+  EXPECT_EQ(c.min_remaining_ratio, d.min_remaining_ratio);
+  EXPECT_EQ(c.window_size, d.window_size);
+}
+
+}  // namespace
+}  // namespace ppf

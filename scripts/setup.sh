@@ -18,7 +18,7 @@ PPF_DEBIAN_PACKAGES=(
   colcon python3-colcon-cmake python3-colcon-package-selection python3-colcon-test-result
   python3-colcon-metadata python3-colcon-recursive-crawl python3-colcon-parallel-executor
   python3-colcon-bash python3-colcon-library-path python3-colcon-output python3-colcon-defaults
-  python3-colcon-package-information python3-colcon-pkg-config
+  python3-colcon-package-information python3-colcon-pkg-config python3-colcon-ros
   libfastrtps-dev libfastcdr-dev fastddsgen
   libeigen3-dev libpcl-dev libomp-dev libgtest-dev
   libyaml-cpp-dev libsqlite3-dev sqlite3 liblz4-dev libzstd-dev

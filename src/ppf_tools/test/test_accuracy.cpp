@@ -1,0 +1,135 @@
+// End-to-end accuracy on simulated sequences with exact ground truth: ppf_sim writes a bag, the
+// offline loop runs the core in each mode, APE (SE(3)-aligned, like evo) must stay within the
+// issue's bounds. CI runs shorter sequences than the 60 s figures recorded in the issue notes;
+// the bounds are the same kind (relative to path length, or absolute for hand-held).
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <sstream>
+#include <string>
+
+#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/evaluation.hpp"
+#include "ppf_tools/offline_runner.hpp"
+#include "ppf_tools/scan_stats.hpp"
+
+#ifndef PPF_SIM_EXE
+#define PPF_SIM_EXE "ppf_sim"
+#endif
+#ifndef PPF_CONFIG_DIR
+#define PPF_CONFIG_DIR "config"
+#endif
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Case {
+  std::string name;
+  std::string sim_args;  // scene, lidar, motion
+  std::string lidar;     // config preset
+  double duration;
+  ppf::Mode mode;
+  double max_ape_percent;  // of path length; <= 0: use max_ape_m
+  double max_ape_m;
+};
+
+std::ostream& operator<<(std::ostream& os, const Case& c) { return os << c.name; }
+
+fs::path SequenceDir(const Case& c) {
+  // Shared between the knn and ppf cases of one sequence: generated once per build tree.
+  std::ostringstream name;
+  name << c.sim_args << "_" << c.duration;
+  std::string n = name.str();
+  for (char& ch : n) {
+    if (ch == ' ' || ch == '-') ch = '_';
+  }
+  return fs::path(PPF_TEST_WORKDIR) / n;
+}
+
+std::string Generate(const Case& c) {
+  const fs::path dir = SequenceDir(c);
+  if (fs::exists(dir / "groundtruth.tum") && fs::exists(dir / "metadata.yaml")) return dir.string();
+  fs::remove_all(dir);
+  fs::create_directories(dir.parent_path());
+  std::ostringstream cmd;
+  cmd << PPF_SIM_EXE << " " << c.sim_args << " --duration " << c.duration
+      << " --seed 1 --storage mcap --out '" << dir.string() << "' > '" << dir.string()
+      << ".log' 2>&1";
+  EXPECT_EQ(std::system(cmd.str().c_str()), 0) << cmd.str();
+  return dir.string();
+}
+
+class Accuracy : public ::testing::TestWithParam<Case> {};
+
+TEST_P(Accuracy, ApeWithinBound) {
+  const Case& c = GetParam();
+  const std::string bag = Generate(c);
+  ASSERT_TRUE(fs::exists(fs::path(bag) / "groundtruth.tum"));
+
+  ppf::Config config;
+  const auto report = ppf::LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/" + c.lidar + ".yaml", &config);
+  ASSERT_TRUE(report.ok) << report.error;
+  config.mode = c.mode;
+
+  const auto run = ppf::tools::RunOffline(bag, config);
+  ppf::Trajectory gt;
+  std::string error;
+  ASSERT_TRUE(ppf::ReadTum(bag + "/groundtruth.tum", &gt, &error)) << error;
+
+  size_t valid = 0, resets = 0, rejected = 0;
+  for (const auto& r : run.results) {
+    valid += r.pose_valid;
+    resets += r.status == ppf::Status::kReset;
+    rejected += r.status == ppf::Status::kRejected;
+  }
+  EXPECT_EQ(resets, 0u);
+  EXPECT_EQ(rejected, 0u);
+  // Everything after the 2 s static start (about 1 s of initialization) must produce a pose.
+  EXPECT_GE(valid + 15, run.results.size()) << "too many scans without a pose";
+  if (c.mode == ppf::Mode::kPpf) {
+    const auto s = ppf::tools::Summarize(run.results, run.wall_s);
+    EXPECT_GT(s.mean_skeleton_points, 0.0) << "PPF mode found no skeleton points";
+  }
+
+  ppf::EvalOptions eval;
+  eval.align = ppf::Alignment::kSE3;
+  const auto ape = ppf::ComputeApe(gt, run.trajectory, eval);
+  ASSERT_TRUE(ape.ok) << ape.error;
+  EXPECT_GE(ape.matched + 15, run.results.size());
+  const double path = ppf::PathLength(gt);
+  const double percent = 100.0 * ape.stats.rmse / std::max(path, 1e-9);
+  std::cout << "[ APE ] " << c.name << ": rmse " << ape.stats.rmse << " m over " << path
+            << " m path (" << percent << " %), max " << ape.stats.max << " m, " << run.results.size()
+            << " scans\n";
+  if (c.max_ape_percent > 0) {
+    EXPECT_LE(percent, c.max_ape_percent) << "APE rmse " << ape.stats.rmse << " m on a " << path << " m path";
+  } else {
+    EXPECT_LE(ape.stats.rmse, c.max_ape_m);
+  }
+}
+
+const ppf::Mode kKnn = ppf::Mode::kKnn;
+const ppf::Mode kPpf = ppf::Mode::kPpf;
+
+INSTANTIATE_TEST_SUITE_P(
+    Simulated, Accuracy,
+    ::testing::Values(
+        Case{"urban_hdl32_knn", "--scene urban --lidar hdl32", "hdl32", 12, kKnn, 0.5, 0},
+        Case{"urban_hdl32_ppf", "--scene urban --lidar hdl32", "hdl32", 12, kPpf, 0.5, 0},
+        Case{"urban_hdl64_knn", "--scene urban --lidar hdl64", "hdl64", 8, kKnn, 0.5, 0},
+        Case{"urban_hdl64_ppf", "--scene urban --lidar hdl64", "hdl64", 8, kPpf, 0.5, 0},
+        Case{"urban_vlp16_knn", "--scene urban --lidar vlp16", "vlp16", 12, kKnn, 0.5, 0},
+        Case{"urban_os1_64_ppf", "--scene urban --lidar os1_64", "os1_64", 8, kPpf, 0.5, 0},
+        Case{"indoor_vlp16_knn", "--scene indoor --lidar vlp16", "vlp16", 12, kKnn, 0.5, 0},
+        Case{"indoor_vlp16_ppf", "--scene indoor --lidar vlp16", "vlp16", 12, kPpf, 0.5, 0},
+        Case{"indoor_os1_128_knn", "--scene indoor --lidar os1_128", "os1_128", 8, kKnn, 0.5, 0},
+        Case{"park_hdl32_knn", "--scene park --lidar hdl32", "hdl32", 12, kKnn, 1.0, 0},
+        Case{"park_hdl32_ppf", "--scene park --lidar hdl32", "hdl32", 12, kPpf, 1.0, 0},
+        Case{"ramps_hdl32_ppf", "--scene ramps --lidar hdl32", "hdl32", 12, kPpf, 0.5, 0},
+        Case{"handheld_indoor_vlp16_knn", "--scene indoor --lidar vlp16 --motion handheld", "vlp16", 12, kKnn, 0, 0.05},
+        Case{"handheld_indoor_vlp16_ppf", "--scene indoor --lidar vlp16 --motion handheld", "vlp16", 12, kPpf, 0, 0.05}),
+    [](const ::testing::TestParamInfo<Case>& info) { return info.param.name; });
+
+}  // namespace

@@ -15,11 +15,14 @@ function(ppf_bag_embed_msg_definitions OUT BUNDLED_DIR OVERRIDE_PKG OVERRIDE_DIR
       continue()
     endif()
     file(READ "${BUNDLED_DIR}/${rel}" text)
+    set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS "${BUNDLED_DIR}/${rel}")
     string(APPEND content "{\"${pkg}/msg/${name}\", R\"ppfmsg(${text})ppfmsg\"},\n")
   endforeach()
   foreach(path IN LISTS overrides)
     get_filename_component(name "${path}" NAME_WE)
     file(READ "${path}" text)
+    # Edits to ppf_msgs_idl's .msg files re-run CMake, so the embedded text never goes stale.
+    set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS "${path}")
     string(APPEND content "{\"${OVERRIDE_PKG}/msg/${name}\", R\"ppfmsg(${text})ppfmsg\"},\n")
   endforeach()
   # Rewrite only on change so unrelated reconfigures do not rebuild the library.

@@ -184,6 +184,8 @@ struct NodeCase {
   const char* args;
 };
 
+void PrintTo(const NodeCase& c, std::ostream* os) { *os << c.name; }
+
 class WeReadNode : public ::testing::TestWithParam<NodeCase> {};
 
 TEST_P(WeReadNode, ValuesMatchScript) {

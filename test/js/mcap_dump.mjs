@@ -4,16 +4,19 @@
 // using the schema text stored in the file, and prints one JSON line per message in log-time
 // order: {"topic","schema","log_time","message"}. uint8[]/byte[] arrays are printed as
 // {"length":N,"fnv1a":"xxxxxxxx"} (32-bit FNV-1a), int64/uint64 as strings.
+// --schemas: instead, print one JSON line per schema, {"schema","encoding","fields":[root field
+// names], "default_size"}, after parsing its text with @foxglove/rosmsg (checks the definitions themselves).
 // Exit code 1 with a message on stderr for any read/CRC/decode error.
 import { open, readFile } from "node:fs/promises";
 import { McapIndexedReader, McapStreamReader } from "@mcap/core";
 import { parse } from "@foxglove/rosmsg";
-import { MessageReader } from "@foxglove/rosmsg2-serialization";
+import { MessageReader, MessageWriter } from "@foxglove/rosmsg2-serialization";
 import lz4 from "lz4js";
 import zstd from "@foxglove/wasm-zstd";
 
 const args = process.argv.slice(2);
 const stream = args.includes("--stream");
+const schemasOnly = args.includes("--schemas");
 const file = args.find((a) => !a.startsWith("--"));
 if (!file) {
   console.error("usage: mcap_dump.mjs FILE [--stream]");
@@ -78,6 +81,29 @@ try {
       },
     };
     const reader = await McapIndexedReader.Initialize({ readable, decompressHandlers });
+    if (schemasOnly) {
+      for (const schema of [...reader.schemasById.values()].sort((a, b) => a.id - b.id)) {
+        const text = new TextDecoder().decode(schema.data);
+        let fields = [];
+        let default_size = 0;
+        if (schema.encoding === "ros2msg") {
+          const defs = parse(text, { ros2: true });
+          fields = defs[0].definitions.filter((d) => !d.isConstant).map((d) => d.name);
+          // Serializing a default message (one element in each top-level message array) and reading
+          // it back resolves every nested type.
+          const sample = {};
+          for (const d of defs[0].definitions) {
+            if (d.isArray && d.isComplex && !d.isConstant) sample[d.name] = [{}];
+          }
+          const bytes = new MessageWriter(defs).writeMessage(sample);
+          new MessageReader(defs).readMessage(bytes);
+          default_size = bytes.length;
+        }
+        console.log(JSON.stringify({ schema: schema.name, encoding: schema.encoding, fields, default_size }));
+      }
+      await fh.close();
+      process.exit(0);
+    }
     for await (const msg of reader.readMessages()) {
       const channel = reader.channelsById.get(msg.channelId);
       const schema = reader.schemasById.get(channel.schemaId);

@@ -252,3 +252,42 @@ TEST(NodeDump, RejectsCorruptFile) {
 }
 
 }  // namespace
+
+namespace {
+
+// Every schema text we write parses in @foxglove/rosmsg with all nested types resolved (it throws
+// on a missing dependency) and round-trips a default message through rosmsg2-serialization.
+TEST(NodeSchemas, AllRequiredDefinitionsParse) {
+  const std::string skip = NodeSkipReason();
+  if (!skip.empty()) GTEST_SKIP() << skip;
+  const std::pair<const char*, const char*> kTypes[] = {
+      {"sensor_msgs/msg/PointCloud2",
+       "[\"header\",\"height\",\"width\",\"fields\",\"is_bigendian\",\"point_step\",\"row_step\","
+       "\"data\",\"is_dense\"]"},
+      {"sensor_msgs/msg/Imu",
+       "[\"header\",\"orientation\",\"orientation_covariance\",\"angular_velocity\","
+       "\"angular_velocity_covariance\",\"linear_acceleration\",\"linear_acceleration_covariance\"]"},
+      {"nav_msgs/msg/Odometry", "[\"header\",\"child_frame_id\",\"pose\",\"twist\"]"},
+      {"nav_msgs/msg/Path", "[\"header\",\"poses\"]"},
+      {"tf2_msgs/msg/TFMessage", "[\"transforms\"]"},
+      {"geometry_msgs/msg/PoseStamped", "[\"header\",\"pose\"]"},
+      {"ppf_msgs/msg/SkeletonPlaneArray", "[\"header\",\"planes\"]"},
+  };
+  TempDir tmp;
+  {
+    Writer w(tmp / "schemas", WriterOptions());
+    for (const auto& [type, fields] : kTypes) w.AddTopic({std::string("/") + type, type, "cdr", ""});
+    w.AddTopic({"/unknown", "x_msgs/msg/Nope", "cdr", ""});
+  }
+  const auto lines = Lines(Node("mcap_dump.mjs", ShellQuote(tmp / "schemas/schemas_0.mcap") + " --schemas"));
+  ASSERT_EQ(lines.size(), 8u);
+  for (size_t i = 0; i < 7; ++i) {
+    const std::string prefix = std::string("{\"schema\":\"") + kTypes[i].first +
+                               "\",\"encoding\":\"ros2msg\",\"fields\":" + kTypes[i].second +
+                               ",\"default_size\":";
+    EXPECT_EQ(lines[i].rfind(prefix, 0), 0u) << lines[i];
+  }
+  EXPECT_EQ(lines[7], "{\"schema\":\"x_msgs/msg/Nope\",\"encoding\":\"\",\"fields\":[],\"default_size\":0}");
+}
+
+}  // namespace

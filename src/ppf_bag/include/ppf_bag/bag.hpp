@@ -2,6 +2,8 @@
 //
 // A bag is a directory holding metadata.yaml plus one or more storage files, exactly as
 // `ros2 bag record` produces it. Readers also accept a single .db3 or .mcap file.
+// Writer and Reader objects are not thread-safe: serialize calls on one object (separate objects
+// are independent).
 #pragma once
 
 #include <cstddef>

@@ -56,5 +56,54 @@ TEST(PpfConfig, ValidationRepairsNonsense) {
   EXPECT_EQ(c.window_size, d.window_size);
 }
 
+TEST(PpfConfig, YamlEveryKeyOptional) {
+  PpfConfig c;
+  // No ppf section, empty section, null section: defaults, no crash, no warnings.
+  for (const char* text : {"", "mode: ppf\n", "ppf:\n", "ppf: {}\n"}) {
+    c = PpfConfig{};
+    const auto r = LoadPpfConfigYamlString(text, &c);
+    EXPECT_TRUE(r.ok) << text << ": " << r.error;
+    EXPECT_TRUE(r.warnings.empty()) << text;
+    EXPECT_EQ(c.plane_least_inliers, 150);
+  }
+}
+
+TEST(PpfConfig, YamlBeamsSelectDefaultsAndKeysOverride) {
+  PpfConfig c;
+  const auto r = LoadPpfConfigYamlString(
+      "mode: ppf\nppf:\n  beams: 64\n  delta: 0.12\n  ransac_seed: 77\n"
+      "  incremental_fitting: false\n  window_size: 7\n  spelled_wrong: 3\n",
+      &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(c.plane_least_inliers, 400);  // from beams: 64
+  EXPECT_DOUBLE_EQ(c.delta, 0.12);
+  EXPECT_EQ(c.ransac_seed, 77u);
+  EXPECT_FALSE(c.incremental_fitting);  // explicit key wins over the beam default
+  EXPECT_EQ(c.window_size, 7);
+  ASSERT_EQ(r.warnings.size(), 1u);
+  EXPECT_NE(r.warnings[0].find("ppf.spelled_wrong"), std::string::npos);
+}
+
+TEST(PpfConfig, YamlWrongTypeFailsAndLeavesConfigUnchanged) {
+  PpfConfig c;
+  c.delta = 0.15;
+  auto r = LoadPpfConfigYamlString("ppf:\n  delta: [1, 2]\n  window_size: 3\n", &c);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("ppf.delta"), std::string::npos) << r.error;
+  EXPECT_DOUBLE_EQ(c.delta, 0.15);
+  EXPECT_EQ(c.window_size, 5);
+  r = LoadPpfConfigYamlString("ppf:\n  plane_least_inliers: many\n", &c);
+  EXPECT_FALSE(r.ok);
+  r = LoadPpfConfigYamlString("ppf: 3\n", &c);
+  EXPECT_FALSE(r.ok);
+  r = LoadPpfConfigYamlString("ppf: [unbalanced\n", &c);
+  EXPECT_FALSE(r.ok);
+  // Out-of-range values are repaired with a warning, not fatal.
+  r = LoadPpfConfigYamlString("ppf:\n  delta: -1\n", &c);
+  EXPECT_TRUE(r.ok);
+  EXPECT_EQ(r.warnings.size(), 1u);
+  EXPECT_DOUBLE_EQ(c.delta, 0.1);
+}
+
 }  // namespace
 }  // namespace ppf

@@ -1,0 +1,87 @@
+#include <map>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "ppf_core/skeleton_tracker.hpp"
+#include "ppf_test_scenes.hpp"
+
+namespace ppf {
+namespace {
+
+ScanFrame MakeFrame(const Eigen::Isometry3d& T_world_lidar, unsigned seed) {
+  const test::CornerScene world = test::MakeCornerScene(0.02, 400, seed);
+  ScanFrame f;
+  for (const auto& p : world.points) {
+    f.points_lidar.push_back((T_world_lidar.inverse() * p.cast<double>()).cast<float>());
+  }
+  f.labels.assign(f.points_lidar.size(), PointLabel::kScattered);
+  f.T_world_lidar_predicted = T_world_lidar;
+  return f;
+}
+
+Eigen::Isometry3d PoseAt(int scan) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.02 * scan, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(0.5 * scan, 0.0, 0.0);
+  return T;
+}
+
+TEST(PpfTracker, LabelsRowsAndWindowThroughTheHooks) {
+  PpfConfig cfg = PpfConfigForBeams(64);
+  cfg.plane_least_inliers = 150;
+  SkeletonTracker tracker(cfg);
+  auto provider = tracker.residual_provider();
+  std::map<size_t, int64_t> first_ids;
+  for (int scan = 0; scan < 4; ++scan) {
+    ScanFrame frame = MakeFrame(PoseAt(scan), 50 + scan);
+    tracker.Split(&frame);
+    ASSERT_EQ(frame.labels.size(), frame.points_lidar.size());
+    size_t skeleton = 0, scattered = 0, discarded = 0;
+    for (PointLabel l : frame.labels) {
+      skeleton += l == PointLabel::kSkeleton;
+      scattered += l == PointLabel::kScattered;
+      discarded += l == PointLabel::kDiscarded;
+    }
+    EXPECT_EQ(skeleton, tracker.last_prefit().skeleton_indices.size());
+    EXPECT_EQ(scattered, tracker.last_prefit().scattered_indices.size());
+    EXPECT_EQ(discarded, tracker.last_prefit().discarded_indices.size());
+    EXPECT_GT(skeleton, frame.points_lidar.size() / 2);  // walls and ground dominate
+
+    provider->BeginScan(frame);
+    std::vector<PointPlaneRow> rows;
+    provider->ComputeRows(PoseAt(scan), &rows);
+    if (scan == 0) {
+      EXPECT_TRUE(rows.empty());  // empty window: nothing to match yet
+    } else {
+      // With the window from the previous scan nearly every skeleton point is matched, and at
+      // the true pose every residual is small.
+      EXPECT_GT(rows.size(), skeleton * 9 / 10);
+      for (const PointPlaneRow& row : rows) {
+        ASSERT_LT(std::abs(row.normal_world.dot(PoseAt(scan) * row.point_lidar) + row.offset), 0.1);
+      }
+      EXPECT_EQ(tracker.last_prefit().guesses_accepted, 3);
+    }
+    provider->EndScan(PoseAt(scan));
+    tracker.Finish(frame, PoseAt(scan));
+    ASSERT_EQ(tracker.last_track_ids().size(), tracker.last_prefit().planes.size());
+    EXPECT_EQ(tracker.window().planes().size(), 3u);
+    if (scan == 0) {
+      for (size_t i = 0; i < tracker.last_track_ids().size(); ++i) {
+        first_ids[i] = tracker.last_track_ids()[i];
+      }
+    } else {
+      // Guess order follows the window, so the same planes come back under the same ids.
+      std::vector<int64_t> now = tracker.last_track_ids(), before;
+      for (auto& kv : first_ids) before.push_back(kv.second);
+      std::sort(now.begin(), now.end());
+      std::sort(before.begin(), before.end());
+      EXPECT_EQ(now, before);
+    }
+  }
+  tracker.Reset();
+  EXPECT_TRUE(tracker.window().empty());
+}
+
+}  // namespace
+}  // namespace ppf

@@ -1,0 +1,54 @@
+// Shared DDS plumbing for ppf_node, ppf_replay, ppf_record and the tests: participant creation
+// from an XML profile, ROS 2 topic-name mangling and the QoS profiles ROS 2 uses.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
+#include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
+
+namespace ppf::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+
+// "/points" -> "rt/points" (ROS 2 prefixes every topic; the leading slash is dropped).
+std::string RosTopicToDds(const std::string& ros_name);
+// "rt/points" -> "/points"; a name without the prefix is returned with a leading slash.
+std::string DdsTopicToRos(const std::string& dds_name);
+// "sensor_msgs/msg/Imu" -> "sensor_msgs::msg::dds_::Imu_"; empty when not of the pkg/msg/Name form.
+std::string RosTypeToDds(const std::string& ros_type);
+// Inverse of RosTypeToDds; empty when the name is not a ROS 2 DDS type name.
+std::string DdsTypeToRos(const std::string& dds_type);
+
+struct ParticipantOptions {
+  int domain_id = 0;
+  // XML file to load (empty: rely on FASTRTPS_DEFAULT_PROFILES_FILE or the Fast DDS defaults).
+  std::string profiles_file;
+  // Participant profile to use (empty: the default participant QoS, i.e. the XML profile marked
+  // is_default_profile when one was loaded).
+  std::string profile_name;
+  std::string participant_name;
+};
+
+// Loads the XML (if any) and creates the participant. Returns nullptr with `error` set on failure
+// (unreadable XML, unknown profile, domain id out of range).
+fdds::DomainParticipant* CreateParticipant(const ParticipantOptions& options, std::string* error);
+
+enum class Reliability { kBestEffort, kReliable };
+
+// ROS 2 "sensor data": keep last 5, best effort, volatile.
+fdds::DataReaderQos SensorReaderQos(Reliability reliability, int depth = 5);
+fdds::DataWriterQos SensorWriterQos(Reliability reliability, int depth = 5);
+// ROS 2 "default": keep last `depth` (10), reliable, volatile.
+fdds::DataReaderQos DefaultReaderQos(int depth = 10);
+fdds::DataWriterQos DefaultWriterQos(int depth = 10);
+// /tf: keep last 100, reliable, volatile.
+fdds::DataWriterQos TfWriterQos();
+// Lossless: reliable keep-all (tests, recording). Writers block up to `max_blocking_ms` when the
+// reader falls behind instead of dropping.
+fdds::DataReaderQos KeepAllReaderQos();
+fdds::DataWriterQos KeepAllWriterQos(int max_blocking_ms = 5000);
+
+}  // namespace ppf::dds

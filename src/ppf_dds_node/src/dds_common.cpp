@@ -1,0 +1,145 @@
+#include "ppf_dds_node/dds_common.hpp"
+
+#include <fstream>
+
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+
+namespace ppf::dds {
+
+std::string RosTopicToDds(const std::string& ros_name) {
+  if (ros_name.rfind("rt/", 0) == 0) return ros_name;  // already mangled
+  std::string name = ros_name;
+  while (!name.empty() && name.front() == '/') name.erase(name.begin());
+  return "rt/" + name;
+}
+
+std::string DdsTopicToRos(const std::string& dds_name) {
+  if (dds_name.rfind("rt/", 0) == 0) return "/" + dds_name.substr(3);
+  if (!dds_name.empty() && dds_name.front() == '/') return dds_name;
+  return "/" + dds_name;
+}
+
+std::string RosTypeToDds(const std::string& ros_type) {
+  const size_t a = ros_type.find('/');
+  if (a == std::string::npos) return "";
+  const size_t b = ros_type.find('/', a + 1);
+  if (b == std::string::npos || ros_type.find('/', b + 1) != std::string::npos) return "";
+  const std::string pkg = ros_type.substr(0, a);
+  const std::string kind = ros_type.substr(a + 1, b - a - 1);
+  const std::string name = ros_type.substr(b + 1);
+  if (pkg.empty() || kind.empty() || name.empty()) return "";
+  return pkg + "::" + kind + "::dds_::" + name + "_";
+}
+
+std::string DdsTypeToRos(const std::string& dds_type) {
+  // pkg::kind::dds_::Name_
+  const size_t a = dds_type.find("::");
+  if (a == std::string::npos) return "";
+  const size_t b = dds_type.find("::", a + 2);
+  if (b == std::string::npos) return "";
+  const std::string rest = dds_type.substr(b + 2);
+  if (rest.rfind("dds_::", 0) != 0) return "";
+  std::string name = rest.substr(6);
+  if (name.size() < 2 || name.back() != '_' || name.find("::") != std::string::npos) return "";
+  name.pop_back();
+  return dds_type.substr(0, a) + "/" + dds_type.substr(a + 2, b - a - 2) + "/" + name;
+}
+
+fdds::DomainParticipant* CreateParticipant(const ParticipantOptions& options, std::string* error) {
+  auto fail = [error](const std::string& why) -> fdds::DomainParticipant* {
+    if (error) *error = why;
+    return nullptr;
+  };
+  // Fast DDS maps domain ids to UDP ports (7400 + 250 * id): ids above 232 overflow.
+  if (options.domain_id < 0 || options.domain_id > 232) {
+    return fail("domain id " + std::to_string(options.domain_id) + " outside 0..232");
+  }
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  if (!options.profiles_file.empty()) {
+    if (!std::ifstream(options.profiles_file).good()) {
+      return fail("cannot read DDS profiles file '" + options.profiles_file + "'");
+    }
+    if (factory->load_XML_profiles_file(options.profiles_file) != ReturnCode_t::RETCODE_OK) {
+      return fail("Fast DDS rejected profiles file '" + options.profiles_file + "'");
+    }
+  }
+  fdds::DomainParticipantQos qos = factory->get_default_participant_qos();
+  if (!options.profile_name.empty()) {
+    if (factory->get_participant_qos_from_profile(options.profile_name, qos) !=
+        ReturnCode_t::RETCODE_OK) {
+      return fail("no participant profile '" + options.profile_name + "' (profiles file '" +
+                  options.profiles_file + "')");
+    }
+  } else if (!options.profiles_file.empty()) {
+    // A profile loaded after the factory came up is not applied to the default QoS by itself.
+    factory->load_profiles();
+    qos = factory->get_default_participant_qos();
+  }
+  if (!options.participant_name.empty()) qos.name(options.participant_name);
+  fdds::DomainParticipant* participant =
+      factory->create_participant(static_cast<fdds::DomainId_t>(options.domain_id), qos);
+  if (participant == nullptr) return fail("create_participant failed");
+  return participant;
+}
+
+namespace {
+
+template <typename QosT>
+void SetCommon(QosT* qos, Reliability reliability, int depth) {
+  qos->reliability().kind = reliability == Reliability::kReliable
+                                ? fdds::RELIABLE_RELIABILITY_QOS
+                                : fdds::BEST_EFFORT_RELIABILITY_QOS;
+  qos->durability().kind = fdds::VOLATILE_DURABILITY_QOS;
+  qos->history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+  qos->history().depth = depth;
+  // Unbounded types (clouds): grow payload buffers on demand instead of preallocating the
+  // type's nominal maximum for every history slot.
+  qos->endpoint().history_memory_policy =
+      eprosima::fastrtps::rtps::PREALLOCATED_WITH_REALLOC_MEMORY_MODE;
+}
+
+}  // namespace
+
+fdds::DataReaderQos SensorReaderQos(Reliability reliability, int depth) {
+  fdds::DataReaderQos qos = fdds::DATAREADER_QOS_DEFAULT;
+  SetCommon(&qos, reliability, depth);
+  return qos;
+}
+
+fdds::DataWriterQos SensorWriterQos(Reliability reliability, int depth) {
+  fdds::DataWriterQos qos = fdds::DATAWRITER_QOS_DEFAULT;
+  SetCommon(&qos, reliability, depth);
+  return qos;
+}
+
+fdds::DataReaderQos DefaultReaderQos(int depth) {
+  return SensorReaderQos(Reliability::kReliable, depth);
+}
+
+fdds::DataWriterQos DefaultWriterQos(int depth) {
+  return SensorWriterQos(Reliability::kReliable, depth);
+}
+
+fdds::DataWriterQos TfWriterQos() { return SensorWriterQos(Reliability::kReliable, 100); }
+
+fdds::DataReaderQos KeepAllReaderQos() {
+  fdds::DataReaderQos qos = SensorReaderQos(Reliability::kReliable, 1);
+  qos.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
+  qos.resource_limits().max_samples = 100000;
+  qos.resource_limits().max_instances = 1;
+  qos.resource_limits().max_samples_per_instance = 100000;
+  return qos;
+}
+
+fdds::DataWriterQos KeepAllWriterQos(int max_blocking_ms) {
+  fdds::DataWriterQos qos = SensorWriterQos(Reliability::kReliable, 1);
+  qos.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
+  qos.resource_limits().max_samples = 100000;
+  qos.resource_limits().max_instances = 1;
+  qos.resource_limits().max_samples_per_instance = 100000;
+  qos.reliability().max_blocking_time =
+      eprosima::fastrtps::Duration_t(max_blocking_ms / 1000, (max_blocking_ms % 1000) * 1000000u);
+  return qos;
+}
+
+}  // namespace ppf::dds

@@ -1,1 +1,319 @@
 #include "ppf_core/evaluation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include <Eigen/SVD>
+
+namespace ppf {
+namespace {
+
+bool ReadFile(const std::string& path, std::string* text, std::string* error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    if (error) *error = "cannot open " + path;
+    return false;
+  }
+  std::ostringstream os;
+  os << in.rdbuf();
+  *text = os.str();
+  return true;
+}
+
+// Splits into numbers; false if a token is not a number.
+bool ParseNumbers(const std::string& line, std::vector<double>* v) {
+  v->clear();
+  std::istringstream is(line);
+  std::string tok;
+  while (is >> tok) {
+    char* end = nullptr;
+    const double x = std::strtod(tok.c_str(), &end);
+    if (end == tok.c_str() || *end != '\0' || !std::isfinite(x)) return false;
+    v->push_back(x);
+  }
+  return true;
+}
+
+}  // namespace
+
+bool ParseTum(const std::string& text, Trajectory* traj, std::string* error) {
+  traj->clear();
+  std::istringstream is(text);
+  std::string line;
+  std::vector<double> v;
+  for (int n = 1; std::getline(is, line); ++n) {
+    const size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    if (!ParseNumbers(line, &v) || v.size() != 8) {
+      if (error) *error = "TUM line " + std::to_string(n) + ": expected 8 numbers";
+      return false;
+    }
+    Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
+    if (q.norm() < 1e-9) {
+      if (error) *error = "TUM line " + std::to_string(n) + ": zero quaternion";
+      return false;
+    }
+    StampedPose p;
+    p.stamp_s = v[0];
+    p.T.linear() = q.normalized().toRotationMatrix();
+    p.T.translation() = Eigen::Vector3d(v[1], v[2], v[3]);
+    traj->push_back(p);
+  }
+  return true;
+}
+
+bool ReadTum(const std::string& path, Trajectory* traj, std::string* error) {
+  std::string text;
+  return ReadFile(path, &text, error) && ParseTum(text, traj, error);
+}
+
+std::string FormatTumLine(const StampedPose& pose) {
+  const Eigen::Quaterniond q(pose.T.linear());
+  const Eigen::Vector3d t = pose.T.translation();
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), "%.9f %.9g %.9g %.9g %.9g %.9g %.9g %.9g", pose.stamp_s, t.x(),
+                t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+  return buf;
+}
+
+bool WriteTum(const std::string& path, const Trajectory& traj) {
+  std::ofstream out(path);
+  if (!out) return false;
+  out << "# timestamp tx ty tz qx qy qz qw\n";
+  for (const StampedPose& p : traj) out << FormatTumLine(p) << '\n';
+  return static_cast<bool>(out);
+}
+
+bool ParseKitti(const std::string& text, Trajectory* traj, std::string* error) {
+  traj->clear();
+  std::istringstream is(text);
+  std::string line;
+  std::vector<double> v;
+  for (int n = 1; std::getline(is, line); ++n) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (!ParseNumbers(line, &v) || v.size() != 12) {
+      if (error) *error = "KITTI line " + std::to_string(n) + ": expected 12 numbers";
+      return false;
+    }
+    StampedPose p;
+    p.stamp_s = static_cast<double>(traj->size());
+    Eigen::Matrix3d R;
+    R << v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10];
+    // Files carry rounded rotations: project onto SO(3).
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    R = svd.matrixU() * svd.matrixV().transpose();
+    p.T.linear() = R;
+    p.T.translation() = Eigen::Vector3d(v[3], v[7], v[11]);
+    traj->push_back(p);
+  }
+  return true;
+}
+
+bool ReadKitti(const std::string& path, Trajectory* traj, std::string* error) {
+  std::string text;
+  return ReadFile(path, &text, error) && ParseKitti(text, traj, error);
+}
+
+bool WriteKitti(const std::string& path, const Trajectory& traj) {
+  std::ofstream out(path);
+  if (!out) return false;
+  char buf[64];
+  for (const StampedPose& p : traj) {
+    const Eigen::Matrix4d m = p.T.matrix();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 4; ++c) {
+        std::snprintf(buf, sizeof(buf), "%.9e", m(r, c));
+        out << buf << ((r == 2 && c == 3) ? '\n' : ' ');
+      }
+    }
+  }
+  return static_cast<bool>(out);
+}
+
+ErrorStats ComputeStats(const std::vector<double>& e) {
+  ErrorStats s;
+  s.count = e.size();
+  if (e.empty()) return s;
+  std::vector<double> sorted = e;
+  std::sort(sorted.begin(), sorted.end());
+  double sum = 0.0, sse = 0.0;
+  for (double x : e) {
+    sum += x;
+    sse += x * x;
+  }
+  const double n = static_cast<double>(e.size());
+  s.sse = sse;
+  s.mean = sum / n;
+  s.rmse = std::sqrt(sse / n);
+  double var = 0.0;
+  for (double x : e) var += (x - s.mean) * (x - s.mean);
+  s.std = std::sqrt(var / n);  // population std, as numpy's default used by evo
+  s.min = sorted.front();
+  s.max = sorted.back();
+  const size_t m = sorted.size() / 2;
+  s.median = sorted.size() % 2 ? sorted[m] : 0.5 * (sorted[m - 1] + sorted[m]);
+  return s;
+}
+
+std::vector<std::pair<size_t, size_t>> AssociateByStamp(const Trajectory& ref,
+                                                        const Trajectory& est, double max_diff,
+                                                        double offset) {
+  // evo iterates over the shorter trajectory and picks, for each of its stamps, the nearest stamp
+  // of the longer one (first one on ties); the offset is added to the estimate's stamps.
+  std::vector<std::pair<size_t, size_t>> out;
+  if (ref.empty() || est.empty()) return out;
+  const bool est_longer = est.size() > ref.size();
+  const Trajectory& shorter = est_longer ? ref : est;
+  const Trajectory& longer = est_longer ? est : ref;
+  const double off_long = est_longer ? offset : 0.0;
+  const double off_short = est_longer ? 0.0 : offset;
+  for (size_t i = 0; i < shorter.size(); ++i) {
+    const double t = shorter[i].stamp_s + off_short;
+    size_t best = 0;
+    double best_d = std::abs(longer[0].stamp_s + off_long - t);
+    for (size_t j = 1; j < longer.size(); ++j) {
+      const double d = std::abs(longer[j].stamp_s + off_long - t);
+      if (d < best_d) {
+        best_d = d;
+        best = j;
+      }
+    }
+    if (best_d <= max_diff) {
+      out.emplace_back(est_longer ? i : best, est_longer ? best : i);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+bool Umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+             bool with_scale, Eigen::Matrix3d* R, Eigen::Vector3d* t, double* scale) {
+  const size_t n = src.size();
+  if (n < 3 || dst.size() != n) return false;
+  Eigen::Vector3d ms = Eigen::Vector3d::Zero(), md = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    ms += src[i];
+    md += dst[i];
+  }
+  ms /= static_cast<double>(n);
+  md /= static_cast<double>(n);
+  double var_s = 0.0;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    var_s += (src[i] - ms).squaredNorm();
+    cov += (dst[i] - md) * (src[i] - ms).transpose();
+  }
+  var_s /= static_cast<double>(n);
+  cov /= static_cast<double>(n);
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d sv = svd.singularValues();
+  if (!(sv(0) > 0.0) || sv(1) < 1e-12 * sv(0)) return false;  // collinear points: R undefined
+  Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
+  if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0) S(2, 2) = -1.0;
+  *R = svd.matrixU() * S * svd.matrixV().transpose();
+  *scale = with_scale ? (sv.asDiagonal() * S).trace() / var_s : 1.0;
+  *t = md - *scale * (*R) * ms;
+  return true;
+}
+
+namespace {
+
+// Associates and aligns: fills matched ref/est poses with the estimate transformed into the
+// reference frame (positions scaled for Sim(3)).
+bool Prepare(const Trajectory& ref, const Trajectory& est, const EvalOptions& o, Trajectory* r,
+             Trajectory* e, EvalResult* res) {
+  const auto pairs = AssociateByStamp(ref, est, o.max_diff, o.offset);
+  res->matched = pairs.size();
+  if (pairs.empty()) {
+    res->error = "no matching stamps (max_diff " + std::to_string(o.max_diff) + " s)";
+    return false;
+  }
+  for (const auto& [i, j] : pairs) {
+    r->push_back(ref[i]);
+    e->push_back(est[j]);
+  }
+  if (o.align == Alignment::kNone) return true;
+  std::vector<Eigen::Vector3d> src, dst;
+  for (size_t k = 0; k < r->size(); ++k) {
+    src.push_back((*e)[k].T.translation());
+    dst.push_back((*r)[k].T.translation());
+  }
+  Eigen::Matrix3d R;
+  Eigen::Vector3d t;
+  double s = 1.0;
+  if (!Umeyama(src, dst, o.align == Alignment::kSim3, &R, &t, &s)) {
+    res->error = "alignment failed (need >= 3 non-collinear matched positions)";
+    return false;
+  }
+  res->scale = s;
+  res->T_ref_est.linear() = R;
+  res->T_ref_est.translation() = t;
+  for (StampedPose& p : *e) {
+    p.T.translation() = s * R * p.T.translation() + t;
+    p.T.linear() = R * p.T.linear();
+  }
+  return true;
+}
+
+}  // namespace
+
+EvalResult ComputeApe(const Trajectory& ref, const Trajectory& est, const EvalOptions& o) {
+  EvalResult res;
+  Trajectory r, e;
+  if (!Prepare(ref, est, o, &r, &e, &res)) return res;
+  for (size_t k = 0; k < r.size(); ++k) {
+    res.errors.push_back((r[k].T.translation() - e[k].T.translation()).norm());
+  }
+  res.stats = ComputeStats(res.errors);
+  res.ok = true;
+  return res;
+}
+
+EvalResult ComputeRpe(const Trajectory& ref, const Trajectory& est, const EvalOptions& o) {
+  EvalResult res;
+  Trajectory r, e;
+  if (!Prepare(ref, est, o, &r, &e, &res)) return res;
+  std::vector<size_t> ids;
+  if (o.delta_in_meters) {
+    // evo: a pose becomes an anchor each time the path since the last anchor reaches delta; the
+    // path is measured on the (aligned) estimate unless pairs_from_reference.
+    const Trajectory& traj = o.pairs_from_reference ? r : e;
+    double path = 0.0;
+    for (size_t k = 0; k < traj.size(); ++k) {
+      if (k > 0) path += (traj[k].T.translation() - traj[k - 1].T.translation()).norm();
+      if (path >= o.delta) {
+        ids.push_back(k);
+        path = 0.0;
+      }
+    }
+  } else {
+    const size_t step = static_cast<size_t>(std::max(1.0, std::round(o.delta)));
+    for (size_t k = 0; k < r.size(); k += step) ids.push_back(k);
+  }
+  for (size_t a = 0; a + 1 < ids.size(); ++a) {
+    const size_t i = ids[a], j = ids[a + 1];
+    const Eigen::Isometry3d Q = r[i].T.inverse() * r[j].T;
+    const Eigen::Isometry3d P = e[i].T.inverse() * e[j].T;
+    res.errors.push_back((Q.inverse() * P).translation().norm());
+  }
+  if (res.errors.empty()) {
+    res.error = "no RPE pairs for delta " + std::to_string(o.delta);
+    return res;
+  }
+  res.stats = ComputeStats(res.errors);
+  res.ok = true;
+  return res;
+}
+
+double PathLength(const Trajectory& traj) {
+  double len = 0.0;
+  for (size_t k = 1; k < traj.size(); ++k) {
+    len += (traj[k].T.translation() - traj[k - 1].T.translation()).norm();
+  }
+  return len;
+}
+
+}  // namespace ppf

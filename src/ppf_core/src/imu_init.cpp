@@ -10,6 +10,7 @@ void ImuInitializer::Reset() {
   window_.clear();
   done_ = false;
   reason_.clear();
+  restart_reason_.clear();
 }
 
 ImuInitializer::State ImuInitializer::Add(const ImuSample& sample) {
@@ -19,14 +20,16 @@ ImuInitializer::State ImuInitializer::Add(const ImuSample& sample) {
   }
   if (!window_.empty() && sample.stamp_s < window_.back().stamp_s) {
     window_.clear();
-    reason_ = "IMU time went backwards during initialization";
+    reason_ = restart_reason_ = "IMU time went backwards during initialization";
     window_.push_back(sample);
     return State::kRestarted;
   }
   window_.push_back(sample);
   const double span = window_.back().stamp_s - window_.front().stamp_s;
   if (span < options_.duration_s || static_cast<int>(window_.size()) < options_.min_samples) {
-    reason_ = "collecting static IMU data";
+    // Keep saying why the last window was thrown away until initialization succeeds.
+    reason_ = "collecting static IMU data" +
+              (restart_reason_.empty() ? std::string() : " (" + restart_reason_ + ")");
     return State::kCollecting;
   }
 
@@ -54,6 +57,7 @@ ImuInitializer::State ImuInitializer::Add(const ImuSample& sample) {
     reason_ = "motion during IMU initialization (acc std " + std::to_string(acc_std) +
               " m/s^2, gyro std " + std::to_string(gyr_std) + " rad/s, |g| " +
               std::to_string(g_norm) + "): restarting";
+    restart_reason_ = reason_;
     window_.clear();
     return State::kRestarted;
   }
@@ -69,6 +73,7 @@ ImuInitializer::State ImuInitializer::Add(const ImuSample& sample) {
   stamp_s_ = window_.back().stamp_s;
   done_ = true;
   reason_.clear();
+  restart_reason_.clear();
   window_.clear();
   return State::kDone;
 }

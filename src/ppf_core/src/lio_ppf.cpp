@@ -109,7 +109,6 @@ struct LioPpf::Impl {
     for (const std::string& note : ValidateConfig(&config)) Log(LogLevel::kWarn, "config: " + note);
     if (config.num_threads > 0) {
       config.knn.num_threads = config.num_threads;
-      config.iekf.num_threads = config.num_threads;
     }
     decoder = TimeFieldDecoder(config.time, config.log);
     init = ImuInitializer(config.init);
@@ -307,7 +306,7 @@ struct LioPpf::Impl {
     PropagateImu(samples, t_end, init.acc_scale(), config.noise, &state, &trace);
     std::vector<Eigen::Vector3f> deskewed;
     if (scan.has_time_field || scan.times_estimated) {
-      DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &deskewed);
+      DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &deskewed, config.num_threads);
     } else {
       deskewed.reserve(pts.size());
       for (const TimedPoint& tp : pts) deskewed.push_back(tp.p);

@@ -14,7 +14,9 @@
 namespace ppf {
 
 // Out: points in the LiDAR frame at trace time t_end. Points keep their order.
+// num_threads: OpenMP threads (0 = OpenMP default).
 void DeskewToEnd(const std::vector<TimedPoint>& points, const PoseTrace& trace, double t_end,
-                 const Eigen::Isometry3d& T_imu_lidar, std::vector<Eigen::Vector3f>* out);
+                 const Eigen::Isometry3d& T_imu_lidar, std::vector<Eigen::Vector3f>* out,
+                 int num_threads = 0);
 
 }  // namespace ppf

@@ -5,7 +5,7 @@
 //      SE(3) or Sim(3) (with scale), or none;
 //   3. APE: e_i = |p_ref_i - p_est_aligned_i|;  RPE over pairs (i, j):
 //      E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j), e = |trans(E)|; pairs every `delta` frames
-//      (i = 0, delta, 2 delta, ...), or by travelled distance `delta` metres along the reference;
+//      (i = 0, delta, 2 delta, ...), or by travelled distance `delta` metres along the estimate;
 //   4. stats: rmse, mean, median, std (population), min, max, sse.
 #pragma once
 
@@ -62,6 +62,7 @@ struct EvalOptions {
   // RPE only:
   double delta = 1.0;
   bool delta_in_meters = false;  // false: delta frames (integer >= 1)
+  bool pairs_from_reference = false;  // metres: measure the path on the reference (evo default: est)
 };
 
 struct EvalResult {

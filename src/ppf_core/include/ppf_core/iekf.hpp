@@ -33,7 +33,6 @@ struct IekfOptions {
   int min_rows = 20;                     // fewer rows: skip the update, keep the prediction
   double degeneracy_min_eig_translation = 30.0;  // J^T J eigenvalue (points) per direction
   double degeneracy_min_eig_rotation = 300.0;    // J^T J eigenvalue (points * m^2)
-  int num_threads = 0;                   // OpenMP threads for residual rows; 0 = default
 };
 
 struct IekfReport {

@@ -57,6 +57,7 @@ class ImuInitializer {
   std::vector<ImuSample> window_;
   bool done_ = false;
   std::string reason_;
+  std::string restart_reason_;
   Eigen::Matrix3d R_world_imu_ = Eigen::Matrix3d::Identity();
   Eigen::Vector3d gyro_bias_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d gravity_world_ = Eigen::Vector3d(0, 0, -9.80665);

@@ -92,7 +92,7 @@ struct Config {
   IekfOptions iekf;  // max 4 iterations, degeneracy thresholds (iekf.hpp)
   KnnOptions knn;    // 5 neighbours, planes valid within 0.1 m (knn_residual.hpp)
 
-  int num_threads = 0;  // OpenMP threads (0 = OpenMP default); applies to iekf and knn
+  int num_threads = 0;  // OpenMP threads for de-skew and kNN residuals (0 = OpenMP default)
   LogCallback log;      // receives all messages; nullptr = silent
 };
 

@@ -1,0 +1,152 @@
+// YAML config: missing keys keep defaults, unknown keys warn, wrong types fail with the key name,
+// and every preset in config/ loads cleanly.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "ppf_core/config_yaml.hpp"
+
+namespace ppf {
+namespace {
+
+TEST(ConfigYaml, EmptyDocumentKeepsAllDefaults) {
+  Config c;
+  const ConfigLoadReport r = LoadConfigYamlString("", &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_TRUE(r.warnings.empty());
+  const Config d;
+  EXPECT_EQ(c.mode, d.mode);
+  EXPECT_EQ(c.scan_voxel_size, d.scan_voxel_size);
+  EXPECT_EQ(c.iekf.max_iterations, 4);
+  EXPECT_EQ(c.knn.k, 5);
+  EXPECT_EQ(c.knn.plane_threshold, 0.1);
+  EXPECT_EQ(c.map.resolution, 0.5);
+  EXPECT_TRUE(c.T_imu_lidar.isApprox(Eigen::Isometry3d::Identity()));
+}
+
+TEST(ConfigYaml, PartialSectionsOverrideOnlyTheirKeys) {
+  Config c;
+  const ConfigLoadReport r = LoadConfigYamlString(R"(
+mode: ppf
+preprocess:
+  scan_voxel_size: 0.3
+time:
+  field: t
+  stamp: end
+  no_time_policy: no_deskew
+map:
+  nearby: 27
+iekf: {max_iterations: 3}
+extrinsic:
+  T_imu_lidar:
+    translation: [0.1, 0.2, 0.3]
+    rpy_deg: [0, 0, 90]
+ppf:
+  plane_least_inliers: 400
+)", &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_TRUE(r.warnings.empty()) << r.warnings.front();
+  EXPECT_EQ(c.mode, Mode::kPpf);
+  EXPECT_EQ(c.scan_voxel_size, 0.3);
+  EXPECT_EQ(c.min_range, Config().min_range);  // untouched key of a present section
+  EXPECT_EQ(c.time.field_name, "t");
+  EXPECT_EQ(c.time.stamp_position, StampPosition::kEnd);
+  EXPECT_EQ(c.time.no_time_policy, NoTimePolicy::kNoDeskew);
+  EXPECT_EQ(c.map.nearby, NearbyType::kNearby27);
+  EXPECT_EQ(c.iekf.max_iterations, 3);
+  EXPECT_TRUE(c.T_imu_lidar.translation().isApprox(Eigen::Vector3d(0.1, 0.2, 0.3)));
+  // 90 deg yaw: lidar x axis is imu y axis.
+  EXPECT_TRUE((c.T_imu_lidar.linear() * Eigen::Vector3d::UnitX()).isApprox(Eigen::Vector3d::UnitY()));
+}
+
+TEST(ConfigYaml, UnknownKeysAreWarnedNotFatal) {
+  Config c;
+  const ConfigLoadReport r = LoadConfigYamlString(R"(
+preprocess:
+  scan_voxel_sise: 0.3
+bogus_section: 1
+extrinsic:
+  T_lidar_imu: {translation: [1, 2, 3]}
+)", &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  ASSERT_EQ(r.warnings.size(), 3u);
+  EXPECT_NE(r.warnings[0].find("preprocess.scan_voxel_sise"), std::string::npos);
+  EXPECT_EQ(c.scan_voxel_size, 0.5);
+}
+
+TEST(ConfigYaml, WrongTypesFailWithTheKeyName) {
+  const struct {
+    const char* yaml;
+    const char* key;
+  } cases[] = {
+      {"preprocess:\n  max_range: [1, 2]\n", "preprocess.max_range"},
+      {"preprocess:\n  max_range: far\n", "preprocess.max_range"},
+      {"iekf:\n  max_iterations: 2.5\n", "iekf.max_iterations"},
+      {"map: 3\n", "map"},
+      {"mode: fast\n", "mode"},
+      {"time:\n  azimuth_clockwise: maybe\n", "time.azimuth_clockwise"},
+      {"map:\n  nearby: 8\n", "map.nearby"},
+      {"map:\n  max_voxels: -5\n", "map.max_voxels"},
+      {"extrinsic:\n  T_imu_lidar:\n    translation: [1, 2]\n", "extrinsic.T_imu_lidar.translation"},
+      {"extrinsic:\n  T_imu_lidar:\n    quaternion_wxyz: [0, 0, 0, 0]\n",
+       "extrinsic.T_imu_lidar.quaternion_wxyz"},
+  };
+  for (const auto& tc : cases) {
+    Config c;
+    c.max_range = 77.0;
+    const ConfigLoadReport r = LoadConfigYamlString(tc.yaml, &c);
+    EXPECT_FALSE(r.ok) << tc.yaml;
+    EXPECT_NE(r.error.find(tc.key), std::string::npos) << r.error;
+    EXPECT_EQ(c.max_range, 77.0);  // a failed load changes nothing
+  }
+}
+
+TEST(ConfigYaml, SyntaxErrorsAndMissingFilesAreErrors) {
+  Config c;
+  EXPECT_FALSE(LoadConfigYamlString("map: [1, 2\n", &c).ok);
+  EXPECT_FALSE(LoadConfigYamlString("- 1\n- 2\n", &c).ok);  // top level must be a map
+  const ConfigLoadReport r = LoadConfigYaml("/nonexistent/ppf.yaml", &c);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("/nonexistent/ppf.yaml"), std::string::npos);
+}
+
+TEST(ConfigYaml, NonsensicalValuesAreClampedWithAWarning) {
+  Config c;
+  const ConfigLoadReport r = LoadConfigYamlString(R"(
+preprocess: {scan_voxel_size: 0.0001}
+map: {resolution: 0}
+iekf: {max_iterations: 0}
+knn: {k: 1}
+)", &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(r.warnings.size(), 4u);
+  EXPECT_GE(c.scan_voxel_size, 0.01);
+  EXPECT_GE(c.map.resolution, 0.05);
+  EXPECT_GE(c.iekf.max_iterations, 1);
+  EXPECT_GE(c.knn.k, 3);
+}
+
+TEST(ConfigYaml, NullValueKeepsDefault) {
+  Config c;
+  const ConfigLoadReport r = LoadConfigYamlString("preprocess:\n  max_range:\n", &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(c.max_range, Config().max_range);
+}
+
+TEST(ConfigYaml, PresetsLoadWithoutWarnings) {
+  for (const char* name : {"vlp16", "hdl32", "hdl64", "os1_64", "os1_128", "kitti_raw"}) {
+    const std::string path = std::string(PPF_CONFIG_DIR) + "/" + name + ".yaml";
+    if (!std::ifstream(path)) GTEST_SKIP() << "presets not found at " << PPF_CONFIG_DIR;
+    Config c;
+    const ConfigLoadReport r = LoadConfigYaml(path, &c);
+    EXPECT_TRUE(r.ok) << name << ": " << r.error;
+    EXPECT_TRUE(r.warnings.empty()) << name << ": " << r.warnings.front();
+  }
+  Config k;
+  ASSERT_TRUE(LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/kitti_raw.yaml", &k).ok);
+  EXPECT_NEAR(k.T_imu_lidar.translation().x(), 0.81, 0.01);
+  EXPECT_EQ(k.init.acc_scale, 1.0);
+}
+
+}  // namespace
+}  // namespace ppf

@@ -1,0 +1,225 @@
+// Facade behaviour: statuses (initializing, rejected, reset), counts, and the kPpf extension
+// point (splitter labels decide residual sources and map insertion).
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "ppf_core/lio_ppf.hpp"
+#include "synthetic.hpp"
+
+namespace ppf {
+namespace {
+
+ImuSample Still(double t) {
+  ImuSample s;
+  s.stamp_s = t;
+  s.linear_acceleration = Eigen::Vector3d(0, 0, 9.81);
+  return s;
+}
+
+test::CloudBuffer StillScan(double t0) {
+  test::LidarModel lidar;
+  lidar.azimuth_steps = 360;
+  const test::PoseFn still = [](double) { return Eigen::Isometry3d::Identity(); };
+  const auto pts = test::SimulateScan(test::MakeRoomScene(), still, Eigen::Isometry3d::Identity(),
+                                      t0, lidar);
+  return test::MakeCloud(pts, t0, pts.back().t, test::TimeEncoding());
+}
+
+void FeedStill(LioPpf* lio, double from, double to) {
+  for (double t = from; t <= to + 1e-9; t += 0.005) lio->AddImu(Still(t));
+}
+
+TEST(LioPpf, InitializingUntilOneSecondOfStaticImu) {
+  LioPpf lio;
+  FeedStill(&lio, 0.0, 0.5);
+  const test::CloudBuffer scan = StillScan(0.4);
+  ScanResult r = lio.ProcessScan(scan.view);
+  EXPECT_EQ(r.status, Status::kInitializing);
+  EXPECT_FALSE(r.pose_valid);
+  EXPECT_FALSE(r.reason.empty());
+  FeedStill(&lio, 0.505, 1.6);
+  EXPECT_TRUE(lio.initialized());
+  const test::CloudBuffer s1 = StillScan(1.4);
+  r = lio.ProcessScan(s1.view);
+  EXPECT_EQ(r.status, Status::kOk) << r.reason;
+  EXPECT_NE(r.reason.find("map initialized"), std::string::npos);
+  EXPECT_GT(lio.map().size(), 0u);
+  FeedStill(&lio, 1.605, 1.7);
+  const test::CloudBuffer s2 = StillScan(1.5);
+  r = lio.ProcessScan(s2.view);
+  EXPECT_EQ(r.status, Status::kOk) << r.reason;
+  EXPECT_LT(r.T_world_imu.translation().norm(), 0.01);
+  EXPECT_GT(r.knn_residuals, 100u);
+}
+
+TEST(LioPpf, MotionDuringInitIsReported) {
+  LioPpf lio;
+  for (double t = 0.0; t <= 1.5; t += 0.005) {
+    ImuSample s = Still(t);
+    s.linear_acceleration.x() = 3.0 * std::sin(15.0 * t);
+    lio.AddImu(s);
+  }
+  const test::CloudBuffer scan = StillScan(1.3);
+  const ScanResult r = lio.ProcessScan(scan.view);
+  EXPECT_EQ(r.status, Status::kInitializing);
+  EXPECT_NE(r.reason.find("motion"), std::string::npos) << r.reason;
+}
+
+TEST(LioPpf, MalformedCloudIsRejectedAndChangesNothing) {
+  std::vector<std::string> logs;
+  Config config;
+  config.log = [&](LogLevel, const std::string& m) { logs.push_back(m); };
+  LioPpf lio(config);
+  FeedStill(&lio, 0.0, 1.2);
+  const test::CloudBuffer good = StillScan(1.0);
+  CloudView bad = good.view;
+  bad.point_step = 6;
+  ScanResult r = lio.ProcessScan(bad);
+  EXPECT_EQ(r.status, Status::kRejected);
+  EXPECT_NE(r.reason.find("point_step"), std::string::npos) << r.reason;
+  bad = good.view;
+  bad.size /= 2;
+  r = lio.ProcessScan(bad);
+  EXPECT_EQ(r.status, Status::kRejected);
+  EXPECT_NE(r.reason.find("size mismatch"), std::string::npos) << r.reason;
+  EXPECT_EQ(lio.map().size(), 0u);
+  EXPECT_FALSE(logs.empty());
+  // A good scan afterwards works normally.
+  r = lio.ProcessScan(good.view);
+  EXPECT_EQ(r.status, Status::kOk) << r.reason;
+}
+
+TEST(LioPpf, NanPointsAreCounted) {
+  LioPpf lio;
+  FeedStill(&lio, 0.0, 1.2);
+  test::LidarModel lidar;
+  lidar.azimuth_steps = 360;
+  const test::PoseFn still = [](double) { return Eigen::Isometry3d::Identity(); };
+  auto pts = test::SimulateScan(test::MakeRoomScene(), still, Eigen::Isometry3d::Identity(), 1.0,
+                                lidar);
+  for (size_t i = 0; i < 25; ++i) pts[i * 7].p.y() = std::nanf("");
+  const test::CloudBuffer c = test::MakeCloud(pts, 1.0, pts.back().t, test::TimeEncoding());
+  const ScanResult r = lio.ProcessScan(c.view);
+  EXPECT_EQ(r.dropped_nan, 25u);
+  EXPECT_EQ(r.input_points, pts.size());
+  EXPECT_EQ(r.status, Status::kOk);
+}
+
+TEST(LioPpf, TimeGoingBackwardsResets) {
+  LioPpf lio;
+  FeedStill(&lio, 0.0, 1.2);
+  const test::CloudBuffer s1 = StillScan(1.0);
+  EXPECT_EQ(lio.ProcessScan(s1.view).status, Status::kOk);
+  FeedStill(&lio, 0.0, 0.2);  // bag loop: IMU jumps back 1.2 s
+  const std::vector<ScanResult> rs = lio.Process(true);
+  ASSERT_FALSE(rs.empty());
+  EXPECT_EQ(rs.front().status, Status::kReset);
+  EXPECT_NE(rs.front().reason.find("backwards"), std::string::npos) << rs.front().reason;
+  EXPECT_FALSE(lio.initialized());
+  EXPECT_EQ(lio.map().size(), 0u);
+  // Recovers: a new static second initializes again.
+  FeedStill(&lio, 0.205, 1.5);
+  EXPECT_TRUE(lio.initialized());
+}
+
+TEST(LioPpf, NoTimeFieldFallbackIsReported) {
+  Config config;
+  config.time.no_time_policy = NoTimePolicy::kNoDeskew;
+  LioPpf lio(config);
+  FeedStill(&lio, 0.0, 1.2);
+  test::LidarModel lidar;
+  lidar.azimuth_steps = 180;
+  const test::PoseFn still = [](double) { return Eigen::Isometry3d::Identity(); };
+  const auto pts = test::SimulateScan(test::MakeRoomScene(), still, Eigen::Isometry3d::Identity(),
+                                      1.0, lidar);
+  test::TimeEncoding none;
+  none.name = "";
+  const test::CloudBuffer c = test::MakeCloud(pts, 1.05, 1.05, none);
+  const ScanResult r = lio.ProcessScan(c.view);
+  EXPECT_NE(r.reason.find("not de-skewed"), std::string::npos) << r.reason;
+  EXPECT_FALSE(lio.time_field_info().present);
+}
+
+// kPpf extension point: a splitter marking every other point as skeleton and a provider that
+// records how it is called.
+class EveryOther : public ScanSplitter {
+ public:
+  std::string Name() const override { return "every_other"; }
+  void Split(ScanFrame* f) override {
+    for (size_t i = 0; i < f->labels.size(); ++i) {
+      f->labels[i] = (i % 2) ? PointLabel::kSkeleton : PointLabel::kScattered;
+    }
+    if (!f->labels.empty()) f->labels[0] = PointLabel::kDiscarded;
+    ++splits;
+  }
+  void Finish(const ScanFrame&, const Eigen::Isometry3d&) override { ++finishes; }
+  int splits = 0, finishes = 0;
+};
+
+class CountingProvider : public ResidualProvider {
+ public:
+  std::string Name() const override { return "counting"; }
+  void BeginScan(const ScanFrame& f) override {
+    frame = &f;
+    ++begins;
+  }
+  void ComputeRows(const Eigen::Isometry3d&, std::vector<PointPlaneRow>* rows) override {
+    ++calls;
+    // One row per skeleton point against the floor (z = -2), as a plane provider would.
+    for (size_t i = 0; i < frame->points_lidar.size(); ++i) {
+      if (frame->labels[i] == PointLabel::kSkeleton && frame->points_lidar[i].z() < -1.9f) {
+        PointPlaneRow r;
+        r.point_lidar = frame->points_lidar[i].cast<double>();
+        r.normal_world = Eigen::Vector3d::UnitZ();
+        r.offset = 2.0;
+        rows->push_back(r);
+      }
+    }
+  }
+  void EndScan(const Eigen::Isometry3d&) override { ++ends; }
+  const ScanFrame* frame = nullptr;
+  int begins = 0, calls = 0, ends = 0;
+};
+
+TEST(LioPpf, PpfModeUsesSplitterLabelsForResidualsAndMap) {
+  Config config;
+  config.mode = Mode::kPpf;
+  LioPpf lio(config);
+  auto splitter = std::make_shared<EveryOther>();
+  auto provider = std::make_shared<CountingProvider>();
+  lio.SetScanSplitter(splitter);
+  lio.AddResidualProvider(provider);
+  FeedStill(&lio, 0.0, 1.3);
+  const test::CloudBuffer s1 = StillScan(1.0);
+  ScanResult r = lio.ProcessScan(s1.view);  // map initialization: no split yet
+  ASSERT_EQ(r.status, Status::kOk);
+  const size_t map_before = lio.map().size();
+  const test::CloudBuffer s2 = StillScan(1.1);
+  r = lio.ProcessScan(s2.view);
+  ASSERT_TRUE(r.pose_valid) << r.reason;
+  EXPECT_EQ(splitter->splits, 1);
+  EXPECT_EQ(splitter->finishes, 1);
+  EXPECT_EQ(provider->begins, 1);
+  EXPECT_EQ(provider->ends, 1);
+  EXPECT_EQ(provider->calls, r.iterations);  // asked again every iteration
+  EXPECT_EQ(r.skeleton_points + r.scattered_points + r.discarded_points, r.downsampled_points);
+  EXPECT_EQ(r.discarded_points, 1u);
+  EXPECT_EQ(r.map_inserted, r.scattered_points);  // only map points enter the map
+  EXPECT_GT(r.skeleton_residuals, 0u);
+  EXPECT_LE(r.knn_residuals, r.scattered_points);
+  EXPECT_LE(lio.map().size(), map_before + r.scattered_points);
+}
+
+TEST(LioPpf, PpfModeWithoutSplitterSaysSo) {
+  Config config;
+  config.mode = Mode::kPpf;
+  LioPpf lio(config);
+  FeedStill(&lio, 0.0, 1.3);
+  const test::CloudBuffer s1 = StillScan(1.0);
+  const ScanResult r = lio.ProcessScan(s1.view);
+  EXPECT_NE(r.reason.find("no ScanSplitter"), std::string::npos) << r.reason;
+}
+
+}  // namespace
+}  // namespace ppf

@@ -1,0 +1,265 @@
+// Per-point time detection and conversion for every convention, fallbacks without a time field,
+// and rejection of malformed clouds.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "ppf_core/time_field.hpp"
+#include "synthetic.hpp"
+
+namespace ppf {
+namespace {
+
+using test::SimPoint;
+using test::TimeEncoding;
+
+// A static sensor in the room: 1 revolution starting at t0.
+std::vector<SimPoint> StaticScan(double t0) {
+  test::LidarModel m;
+  m.rings = 4;
+  m.azimuth_steps = 90;
+  const auto pose = [](double) { return Eigen::Isometry3d::Identity(); };
+  return test::SimulateScan(test::MakeRoomScene(), pose, Eigen::Isometry3d::Identity(), t0, m);
+}
+
+struct Convention {
+  const char* label;
+  TimeEncoding enc;
+  double t0;  // absolute start of the scan
+  bool expect_absolute;
+  bool expect_stamp_at_end;
+};
+
+class TimeFieldConventions : public ::testing::TestWithParam<Convention> {};
+
+TEST_P(TimeFieldConventions, DetectsAndConvertsToAbsoluteTimes) {
+  const Convention& c = GetParam();
+  const std::vector<SimPoint> pts = StaticScan(c.t0);
+  const double t_end = pts.back().t;
+  const test::CloudBuffer cloud = test::MakeCloud(pts, c.t0, t_end, c.enc);
+
+  int info_logs = 0;
+  TimeFieldDecoder decoder(TimeFieldOptions(), [&](LogLevel level, const std::string&) {
+    if (level == LogLevel::kInfo) ++info_logs;
+  });
+  DecodedScan scan;
+  std::string error;
+  ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error)) << error;
+  ASSERT_EQ(scan.points.size(), pts.size());
+  EXPECT_TRUE(scan.has_time_field);
+  EXPECT_EQ(decoder.info().name, c.enc.name);
+  EXPECT_EQ(decoder.info().absolute, c.expect_absolute) << decoder.info().Describe();
+  EXPECT_EQ(decoder.info().stamp_at_end, c.expect_stamp_at_end) << decoder.info().Describe();
+  // float32 seconds relative: ~1e-8; float64 absolute epoch: ~1e-7; uint32 ns: 1e-9.
+  for (size_t i = 0; i < pts.size(); ++i) {
+    ASSERT_NEAR(scan.points[i].t, pts[i].t, 1e-6) << c.label << " point " << i;
+  }
+  EXPECT_NEAR(scan.t_begin, c.t0, 1e-6);
+  EXPECT_NEAR(scan.t_end, t_end, 1e-6);
+
+  // Detection happens once: decoding more scans logs nothing new.
+  ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error));
+  ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error));
+  EXPECT_EQ(info_logs, 1);
+}
+
+TimeEncoding Enc(const char* name, FieldType type, double unit, bool absolute, bool at_end,
+                 bool rel_end) {
+  TimeEncoding e;
+  e.name = name;
+  e.type = type;
+  e.unit_s = unit;
+  e.absolute = absolute;
+  e.stamp_at_end = at_end;
+  e.relative_to_end = rel_end;
+  return e;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    AllConventions, TimeFieldConventions,
+    ::testing::Values(
+        // Ouster: t, uint32 ns relative to the header stamp at scan start.
+        Convention{"ouster_t_u32ns", Enc("t", FieldType::kUint32, 1e-9, false, false, false),
+                   1700000000.25, false, false},
+        // Velodyne: time, float32 s relative to the scan start stamp.
+        Convention{"velodyne_time_f32", Enc("time", FieldType::kFloat32, 1.0, false, false, false),
+                   1700000000.5, false, false},
+        // Velodyne (stamp at end): float32 offsets <= 0 relative to the end stamp.
+        Convention{"velodyne_time_f32_end",
+                   Enc("time", FieldType::kFloat32, 1.0, false, true, true), 1700000000.5, false,
+                   true},
+        // Hesai: timestamp, float64 absolute epoch seconds.
+        Convention{"hesai_timestamp_f64_abs",
+                   Enc("timestamp", FieldType::kFloat64, 1.0, true, false, false), 1700000000.75,
+                   true, false},
+        // time_stamp float64 relative (sim clock near zero: stays relative).
+        Convention{"time_stamp_f64_rel",
+                   Enc("time_stamp", FieldType::kFloat64, 1.0, false, false, false), 3.0, false,
+                   false},
+        // Livox: offset_time uint32 ns relative to the scan start.
+        Convention{"livox_offset_time_u32ns",
+                   Enc("offset_time", FieldType::kUint32, 1e-9, false, false, false), 120.0,
+                   false, false}),
+    [](const ::testing::TestParamInfo<Convention>& info) { return std::string(info.param.label); });
+
+TEST(TimeField, StampAtEndWithNonNegativeOffsetsNeedsConfig) {
+  const std::vector<SimPoint> pts = StaticScan(50.0);
+  const double t_end = pts.back().t;
+  // Offsets from the first point (>= 0), header stamp at the END: only config can tell.
+  TimeEncoding enc = Enc("time", FieldType::kFloat32, 1.0, false, true, false);
+  const test::CloudBuffer cloud = test::MakeCloud(pts, 50.0, t_end, enc);
+  TimeFieldOptions opt;
+  opt.stamp_position = StampPosition::kEnd;
+  TimeFieldDecoder decoder(opt);
+  DecodedScan scan;
+  std::string error;
+  ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error)) << error;
+  EXPECT_TRUE(decoder.info().stamp_at_end);
+  for (size_t i = 0; i < pts.size(); ++i) ASSERT_NEAR(scan.points[i].t, pts[i].t, 1e-6);
+}
+
+TEST(TimeField, ConfigOverridesNameAndUnit) {
+  const std::vector<SimPoint> pts = StaticScan(10.0);
+  // A microsecond uint32 field with a non-standard name, plus a decoy "t" field full of zeros.
+  TimeEncoding enc = Enc("t_us", FieldType::kUint32, 1e-6, false, false, false);
+  test::CloudBuffer cloud = test::MakeCloud(pts, 10.0, pts.back().t, enc);
+  TimeFieldOptions opt;
+  opt.field_name = "t_us";
+  opt.unit_scale_s = 1e-6;
+  TimeFieldDecoder decoder(opt);
+  DecodedScan scan;
+  std::string error;
+  ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error)) << error;
+  EXPECT_EQ(decoder.info().name, "t_us");
+  for (size_t i = 0; i < pts.size(); ++i) ASSERT_NEAR(scan.points[i].t, pts[i].t, 1e-6);
+  // Forcing "absolute" makes the same values absolute seconds (tiny): the override wins.
+  TimeFieldOptions abs_opt = opt;
+  abs_opt.reference = TimeReference::kAbsolute;
+  TimeFieldDecoder abs_decoder(abs_opt);
+  ASSERT_TRUE(abs_decoder.Decode(cloud.view, &scan, &error));
+  EXPECT_TRUE(abs_decoder.info().absolute);
+  EXPECT_LT(scan.t_end, 1.0);
+}
+
+TEST(TimeField, NoTimeFieldNoDeskewUsesStamp) {
+  const std::vector<SimPoint> pts = StaticScan(5.0);
+  TimeEncoding enc;
+  enc.name = "";
+  const test::CloudBuffer cloud = test::MakeCloud(pts, 5.0, pts.back().t, enc);
+  TimeFieldOptions opt;
+  opt.no_time_policy = NoTimePolicy::kNoDeskew;
+  int warnings = 0;
+  TimeFieldDecoder decoder(opt, [&](LogLevel l, const std::string&) {
+    if (l == LogLevel::kWarn) ++warnings;
+  });
+  DecodedScan scan;
+  std::string error;
+  ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error));
+  ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error));
+  EXPECT_FALSE(scan.has_time_field);
+  EXPECT_FALSE(scan.times_estimated);
+  EXPECT_NE(scan.note.find("not de-skewed"), std::string::npos);
+  for (const TimedPoint& p : scan.points) ASSERT_EQ(p.t, 5.0);
+  EXPECT_EQ(warnings, 1);  // said loudly, once
+}
+
+TEST(TimeField, NoTimeFieldAzimuthEstimate) {
+  test::LidarModel m;
+  m.rings = 4;
+  m.azimuth_steps = 360;
+  const auto pose = [](double) { return Eigen::Isometry3d::Identity(); };
+  const auto pts = test::SimulateScan(test::MakeRoomScene(), pose, Eigen::Isometry3d::Identity(),
+                                      7.0, m);
+  TimeEncoding enc;
+  enc.name = "";
+  const test::CloudBuffer cloud = test::MakeCloud(pts, 7.0, pts.back().t, enc);
+  TimeFieldDecoder decoder;  // default policy: azimuth, clockwise, 0.1 s
+  DecodedScan scan;
+  std::string error;
+  ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error));
+  EXPECT_TRUE(scan.times_estimated);
+  EXPECT_NE(scan.note.find("azimuth"), std::string::npos);
+  // float32 coordinates put the azimuth within ~1e-6 rad: well within one step (0.1 s / 360).
+  for (size_t i = 0; i < pts.size(); ++i) {
+    ASSERT_NEAR(scan.points[i].t, pts[i].t, 1e-4) << i;
+  }
+}
+
+CloudView GoodView(const test::CloudBuffer& c) { return c.view; }
+
+TEST(TimeField, RejectsMalformedClouds) {
+  const std::vector<SimPoint> pts = StaticScan(1.0);
+  const test::CloudBuffer cloud = test::MakeCloud(pts, 1.0, pts.back().t, TimeEncoding());
+  TimeFieldDecoder decoder;
+  DecodedScan scan;
+  std::string error;
+
+  CloudView v = GoodView(cloud);
+  v.point_step = 8;  // z at offset 8 does not fit
+  v.row_step = v.point_step * v.width;
+  EXPECT_FALSE(decoder.Decode(v, &scan, &error));
+  EXPECT_NE(error.find("point_step"), std::string::npos) << error;
+  EXPECT_TRUE(scan.points.empty());
+
+  v = GoodView(cloud);
+  v.size = cloud.bytes.size() - 1;  // one byte short
+  EXPECT_FALSE(decoder.Decode(v, &scan, &error));
+  EXPECT_NE(error.find("size mismatch"), std::string::npos) << error;
+
+  v = GoodView(cloud);
+  v.width += 10;  // claims more points than bytes
+  EXPECT_FALSE(decoder.Decode(v, &scan, &error));
+
+  v = GoodView(cloud);
+  v.fields.erase(v.fields.begin() + 2);  // no z
+  EXPECT_FALSE(decoder.Decode(v, &scan, &error));
+  EXPECT_NE(error.find("x, y or z"), std::string::npos) << error;
+
+  v = GoodView(cloud);
+  v.data = nullptr;
+  EXPECT_FALSE(decoder.Decode(v, &scan, &error));
+
+  v = GoodView(cloud);
+  v.is_bigendian = true;
+  EXPECT_FALSE(decoder.Decode(v, &scan, &error));
+
+  v = GoodView(cloud);
+  v.fields[4].type = static_cast<FieldType>(42);
+  EXPECT_FALSE(decoder.Decode(v, &scan, &error));
+
+  v = GoodView(cloud);
+  v.fields[4].offset = v.point_step - 2;  // time field straddles the point end
+  EXPECT_FALSE(decoder.Decode(v, &scan, &error));
+}
+
+TEST(TimeField, NanPointsDroppedAndCounted) {
+  std::vector<SimPoint> pts = StaticScan(1.0);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  pts[3].p.x() = nan;
+  pts[10].p.z() = std::numeric_limits<float>::infinity();
+  const test::CloudBuffer cloud = test::MakeCloud(pts, 1.0, pts.back().t, TimeEncoding());
+  TimeFieldDecoder decoder;
+  DecodedScan scan;
+  std::string error;
+  ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error));
+  EXPECT_EQ(scan.dropped_nan, 2u);
+  EXPECT_EQ(scan.points.size(), pts.size() - 2);
+  EXPECT_EQ(scan.input_points, pts.size());
+}
+
+TEST(TimeField, EmptyCloudIsValid) {
+  CloudView v;
+  v.fields = {{"x", 0, FieldType::kFloat32, 1},
+              {"y", 4, FieldType::kFloat32, 1},
+              {"z", 8, FieldType::kFloat32, 1}};
+  v.point_step = 12;
+  TimeFieldDecoder decoder;
+  DecodedScan scan;
+  std::string error;
+  EXPECT_TRUE(decoder.Decode(v, &scan, &error)) << error;
+  EXPECT_TRUE(scan.points.empty());
+}
+
+}  // namespace
+}  // namespace ppf

@@ -316,4 +316,33 @@ double PathLength(const Trajectory& traj) {
   return len;
 }
 
+std::string FormatStatsTable(const std::string& title, const std::string& subtitle,
+                             const ErrorStats& stats) {
+  std::ostringstream os;
+  os << title << "\n";
+  if (!subtitle.empty()) os << subtitle << "\n";
+  os << "\n";
+  const std::pair<const char*, double> rows[] = {
+      {"max", stats.max},   {"mean", stats.mean}, {"median", stats.median}, {"min", stats.min},
+      {"rmse", stats.rmse}, {"sse", stats.sse},   {"std", stats.std}};
+  char buf[64];
+  for (const auto& [name, value] : rows) {
+    std::snprintf(buf, sizeof(buf), "%10s\t%.6f\n", name, value);
+    os << buf;
+  }
+  return os.str();
+}
+
+const char* AlignmentDescription(Alignment align) {
+  switch (align) {
+    case Alignment::kNone:
+      return "(not aligned)";
+    case Alignment::kSE3:
+      return "(with SE(3) Umeyama alignment)";
+    case Alignment::kSim3:
+      return "(with Sim(3) Umeyama alignment)";
+  }
+  return "";
+}
+
 }  // namespace ppf

@@ -67,8 +67,13 @@ RunOutput Simulate(const RunOptions& o, Config config) {
   return out;
 }
 
-void CheckAccuracy(const RunOutput& run, const char* label) {
+void CheckAccuracy(const RunOutput& run, const char* label, const std::string& file_tag) {
   ASSERT_GT(run.est.size(), 100u);
+  // Kept for inspection with ppf_eval / evo: <TempDir>/ppf_e2e_<tag>_{gt,est}.tum
+  const std::string base = ::testing::TempDir() + "ppf_e2e_" + file_tag;
+  EXPECT_TRUE(WriteTum(base + "_gt.tum", run.gt));
+  EXPECT_TRUE(WriteTum(base + "_est.tum", run.est));
+  std::printf("[%s] trajectories: %s_{gt,est}.tum\n", label, base.c_str());
   size_t ok = 0, degenerate = 0, other = 0;
   double max_total_ms = 0.0;
   StageTimings sum;
@@ -118,7 +123,7 @@ TEST(EndToEnd, VelodyneStyleTimeInRoom) {
   RunOptions o;  // "time" float32 seconds from the scan start stamp
   Config config;
   const RunOutput run = Simulate(o, config);
-  CheckAccuracy(run, "velodyne time f32, m/s^2");
+  CheckAccuracy(run, "velodyne time f32, m/s^2", "velodyne");
   // Every scan after the map exists reports its stage timings and counts.
   const ScanResult& last = run.results.back();
   EXPECT_EQ(last.status, Status::kOk) << last.reason;
@@ -140,7 +145,7 @@ TEST(EndToEnd, OusterStyleTimeImuInGStampAtEnd) {
   Config config;
   config.time.stamp_position = StampPosition::kEnd;  // not detectable from >= 0 offsets
   const RunOutput run = Simulate(o, config);
-  CheckAccuracy(run, "ouster t u32 ns, stamp at end, IMU in g");
+  CheckAccuracy(run, "ouster t u32 ns, stamp at end, IMU in g", "ouster");
 }
 
 }  // namespace

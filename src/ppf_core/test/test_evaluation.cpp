@@ -194,5 +194,21 @@ TEST(Evaluation, AlignmentNeedsThreeNonCollinearPoints) {
   EXPECT_TRUE(ComputeApe(ref, ref, o).ok);
 }
 
+TEST(Evaluation, StatsTableListsEvoRowsInEvoOrder) {
+  ErrorStats st = ComputeStats({0.1, 0.2, 0.3});
+  const std::string t = FormatStatsTable("APE w.r.t. translation part (m)",
+                                         AlignmentDescription(Alignment::kSE3), st);
+  EXPECT_NE(t.find("APE w.r.t. translation part (m)\n(with SE(3) Umeyama alignment)\n\n"),
+            std::string::npos);
+  size_t last = 0;
+  for (const char* row : {"max", "mean", "median", "min", "rmse", "sse", "std"}) {
+    const size_t at = t.find(std::string(row) + "\t");
+    ASSERT_NE(at, std::string::npos) << row;
+    EXPECT_GT(at, last);
+    last = at;
+  }
+  EXPECT_NE(t.find("      rmse\t0.216025\n"), std::string::npos) << t;
+}
+
 }  // namespace
 }  // namespace ppf

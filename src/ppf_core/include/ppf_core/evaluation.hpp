@@ -81,4 +81,15 @@ EvalResult ComputeRpe(const Trajectory& ref, const Trajectory& est, const EvalOp
 // Length of the path through the positions (metres).
 double PathLength(const Trajectory& traj);
 
+// evo-style result table, e.g.
+//   APE w.r.t. translation part (m)
+//   (with SE(3) Umeyama alignment)
+//
+//          max	0.083008
+//         mean	0.016234
+//   ... median, min, rmse, sse, std
+std::string FormatStatsTable(const std::string& title, const std::string& subtitle,
+                             const ErrorStats& stats);
+const char* AlignmentDescription(Alignment align);  // "(with SE(3) Umeyama alignment)", ...
+
 }  // namespace ppf

@@ -25,7 +25,7 @@ void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
   const long n = static_cast<long>(skeleton_indices.size());
   const long num_points = static_cast<long>(points_lidar.size());
   std::vector<SkeletonMatch> per_point(n);
-#pragma omp parallel for schedule(static) if (n > 8192)
+#pragma omp parallel for schedule(static) if (n > 32768)
   for (long i = 0; i < n; ++i) {
     SkeletonMatch m;
     const int idx = skeleton_indices[i];

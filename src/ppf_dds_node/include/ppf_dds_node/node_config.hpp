@@ -1,0 +1,67 @@
+// ppf_node configuration. Every YAML key is optional; the defaults below are what runs without a
+// file. Layout (see config/node.yaml for the commented version):
+//   dds:     { domain_id, profiles_file, profile_name, participant_name }
+//   topics:  { points, imu, odometry, skeleton_planes, tf, path, registered_points }
+//   frames:  { odom_frame, base_frame }
+//   qos:     { sensor_reliability: best_effort|reliable, sensor_depth }
+//   outputs: { tf, path, path_max_poses, skeleton_planes, registered_points }
+//   queues:  { scan_capacity, imu_capacity }
+//   core:    { config_file }          ppf_core YAML (config/hdl64.yaml, ...), empty = defaults
+//   trajectory: { tum_file }          written on shutdown (TUM: t x y z qx qy qz qw), empty = off
+//   diagnostics: { period_s, malformed_log_interval_s }
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "ppf_dds_node/dds_common.hpp"
+
+namespace ppf::dds {
+
+struct NodeConfig {
+  ParticipantOptions participant{0, "", "", "ppf_node"};
+
+  std::string points_topic = "/points";
+  std::string imu_topic = "/imu";
+  std::string odometry_topic = "/odometry";
+  std::string skeleton_planes_topic = "/skeleton_planes";
+  std::string tf_topic = "/tf";
+  std::string path_topic = "/path";
+  std::string registered_points_topic = "/registered_points";
+
+  std::string odom_frame = "odom";
+  std::string base_frame = "base_link";  // the IMU body frame: odometry is the IMU's pose
+
+  // Best effort matches both best-effort and reliable drivers (a reliable reader would not match
+  // a best-effort writer).
+  Reliability sensor_reliability = Reliability::kBestEffort;
+  int sensor_depth = 5;
+
+  bool publish_tf = true;
+  bool publish_path = true;
+  int path_max_poses = 1000;  // /path keeps the last N poses (bounded message and memory)
+  bool publish_skeleton_planes = true;
+  bool publish_registered_points = false;
+
+  // Scans waiting for the core; when full the oldest is dropped (and counted).
+  int scan_queue_capacity = 4;
+  // IMU samples waiting for the core: ~4 min at 400 Hz; exceeding it is logged as an error.
+  int imu_queue_capacity = 100000;
+
+  std::string core_config_file;
+  std::string tum_file;
+
+  double diagnostics_period_s = 5.0;
+  double malformed_log_interval_s = 1.0;
+};
+
+struct NodeConfigReport {
+  bool ok = true;
+  std::string error;
+  std::vector<std::string> warnings;  // unknown keys, clamped values
+};
+
+NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* config);
+NodeConfigReport LoadNodeConfig(const std::string& path, NodeConfig* config);
+
+}  // namespace ppf::dds

@@ -1,0 +1,71 @@
+// PpfNode: LIO-PPF on one DomainParticipant, ROS 2 wire compatible.
+//
+// Threads:
+//   DDS listener threads  decode + validate (ppf_bridge), push into bounded time-ordered queues;
+//                         never wait for the core
+//   executor thread       the only thread touching ppf::LioPpf; publishes the outputs
+//   run() caller          periodic diagnostics; on stop(): drain, flush, write TUM, tear down
+//
+// Usage (as in eProsima's examples): PpfNode node(config); node.init(&err); node.run() until
+// stop() is called (e.g. from a signal watcher); the destructor deletes all entities.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "ppf_dds_node/node_config.hpp"
+
+namespace ppf::dds {
+
+struct NodeSummary {
+  uint64_t scans_received = 0;
+  uint64_t scans_dropped = 0;       // evicted from the scan queue because the core fell behind
+  uint64_t scans_malformed = 0;     // undecodable CDR / unusable layout
+  uint64_t scans_processed = 0;     // results returned by the core
+  uint64_t scans_rejected = 0;      // core said kRejected
+  uint64_t scans_initializing = 0;  // core said kInitializing
+  uint64_t resets = 0;              // core said kReset
+  uint64_t degenerate = 0;
+  uint64_t odometry_published = 0;
+  uint64_t imu_received = 0;
+  uint64_t imu_malformed = 0;
+  uint64_t imu_overflow = 0;  // evicted from the IMU queue (should never happen)
+  uint64_t imu_out_of_order = 0;
+  double latency_p50_ms = 0, latency_p99_ms = 0, latency_max_ms = 0;
+  double core_p50_ms = 0, core_p99_ms = 0;
+  // overhead = latency - core - imu_wait: the node's own cost (decode, queues, publishing).
+  double overhead_p50_ms = 0, overhead_p99_ms = 0, overhead_max_ms = 0;
+  double imu_wait_p50_ms = 0, imu_wait_p99_ms = 0;  // scan waited in the core for IMU coverage
+  double decode_p50_ms = 0, decode_p99_ms = 0;      // listener: take + CDR decode + checks
+  double queue_p50_ms = 0, queue_p99_ms = 0;        // scan queue -> executor
+  std::string last_status;
+};
+
+class PpfNode {
+ public:
+  explicit PpfNode(const NodeConfig& config);
+  ~PpfNode();
+  PpfNode(const PpfNode&) = delete;
+  PpfNode& operator=(const PpfNode&) = delete;
+
+  // Creates the participant and entities in order (types, topics, publisher + writers,
+  // subscriber + readers) and the core. False with `error` on any failure.
+  bool init(std::string* error);
+  // Blocks until stop(); then drains queued data, flushes the core, writes the trajectory.
+  void run();
+  // Thread-safe, returns at once.
+  void stop();
+
+  NodeSummary summary() const;
+  // "key=value ..." line, stable for scripts and tests.
+  static std::string FormatSummary(const NodeSummary& s);
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ppf::dds

@@ -1,0 +1,56 @@
+// Reader-side topic type that decodes through ppf_bridge::DecodeCdr and never rejects a sample
+// inside Fast DDS: a malformed payload arrives as {valid = false, error}, so the node counts and
+// logs it (a generated type would make Fast DDS drop it without telling us).
+#pragma once
+
+#include <string>
+
+#include <fastdds/dds/topic/TopicDataType.hpp>
+#include <fastdds/rtps/common/SerializedPayload.h>
+
+#include "ppf_bridge/cdr.hpp"
+#include "ppf_bridge/msg_traits.hpp"
+
+namespace ppf::dds {
+
+template <typename MsgT>
+struct Validated {
+  MsgT msg;
+  bool valid = false;
+  std::string error;
+  size_t payload_size = 0;
+};
+
+template <typename MsgT>
+class ValidatingPubSubType : public eprosima::fastdds::dds::TopicDataType {
+ public:
+  ValidatingPubSubType() {
+    setName(bridge::MsgTraits<MsgT>::kDdsName);
+    m_typeSize = 4096;  // initial buffer only; histories grow on demand
+    m_isGetKeyDefined = false;
+  }
+
+  bool serialize(void* data, eprosima::fastrtps::rtps::SerializedPayload_t* payload) override {
+    typename bridge::MsgTraits<MsgT>::PubSubType generated;
+    return generated.serialize(&static_cast<Validated<MsgT>*>(data)->msg, payload);
+  }
+
+  bool deserialize(eprosima::fastrtps::rtps::SerializedPayload_t* payload, void* data) override {
+    auto* out = static_cast<Validated<MsgT>*>(data);
+    out->payload_size = payload->length;
+    out->error.clear();
+    out->valid = bridge::DecodeCdr(payload->data, payload->length, &out->msg, &out->error);
+    return true;  // delivered either way; the listener decides
+  }
+
+  std::function<uint32_t()> getSerializedSizeProvider(void* data) override {
+    typename bridge::MsgTraits<MsgT>::PubSubType generated;
+    return generated.getSerializedSizeProvider(&static_cast<Validated<MsgT>*>(data)->msg);
+  }
+
+  void* createData() override { return new Validated<MsgT>(); }
+  void deleteData(void* data) override { delete static_cast<Validated<MsgT>*>(data); }
+  bool getKey(void*, eprosima::fastrtps::rtps::InstanceHandle_t*, bool) override { return false; }
+};
+
+}  // namespace ppf::dds

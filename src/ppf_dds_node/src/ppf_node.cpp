@@ -1,0 +1,716 @@
+#include "ppf_dds_node/ppf_node.hpp"
+
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <deque>
+#include <fstream>
+#include <iomanip>
+#include <mutex>
+#include <sstream>
+#include <thread>
+#include <vector>
+
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+
+#include "ppf_bridge/cdr.hpp"
+#include "ppf_bridge/convert.hpp"
+#include "ppf_bridge/msg_traits.hpp"
+#include "ppf_bridge/odometry.hpp"
+#include "ppf_bridge/skeleton_planes.hpp"
+#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/lio_ppf.hpp"
+#include "ppf_core/ppf_config.hpp"
+#include "ppf_core/skeleton_tracker.hpp"
+#include "ppf_dds_node/latency_stats.hpp"
+#include "ppf_dds_node/logging.hpp"
+#include "ppf_dds_node/time_ordered_queue.hpp"
+#include "ppf_dds_node/validating_type.hpp"
+
+namespace ppf::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double MsBetween(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+struct ScanItem {
+  std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;
+  Clock::time_point received;  // listener entry, before the sample is taken and decoded
+  Clock::time_point queued;    // pushed into the scan queue
+};
+
+struct ImuItem {
+  ImuSample sample;
+};
+
+// Per scan handed to the core, in AddScan order (the core returns results in input order).
+struct PendingScan {
+  Clock::time_point received;
+  Clock::time_point added;  // AddScan returned
+  double decode_ms = 0.0;   // listener: take + CDR decode + checks
+  double queue_ms = 0.0;    // waiting in the scan queue for the executor
+  double add_scan_ms = 0.0;
+  std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;  // kept only for /registered_points
+};
+
+template <typename MsgT>
+fdds::DataWriter* CreateWriter(fdds::DomainParticipant* participant, fdds::Publisher* publisher,
+                               fdds::TypeSupport* type, const std::string& ros_topic,
+                               const fdds::DataWriterQos& qos, std::string* error) {
+  type->register_type(participant);
+  fdds::Topic* topic = participant->create_topic(RosTopicToDds(ros_topic), type->get_type_name(),
+                                                 fdds::TOPIC_QOS_DEFAULT);
+  if (!topic) {
+    *error = "cannot create topic " + RosTopicToDds(ros_topic);
+    return nullptr;
+  }
+  fdds::DataWriter* w = publisher->create_datawriter(topic, qos);
+  if (!w) *error = "cannot create writer on " + RosTopicToDds(ros_topic);
+  return w;
+}
+
+}  // namespace
+
+struct PpfNode::Impl {
+  explicit Impl(const NodeConfig& c)
+      : config(c),
+        scan_queue(static_cast<size_t>(c.scan_queue_capacity)),
+        imu_queue(static_cast<size_t>(c.imu_queue_capacity)),
+        malformed_log(c.malformed_log_interval_s),
+        drop_log(c.malformed_log_interval_s) {}
+
+  // ---- listeners (DDS threads) ----------------------------------------------------------------
+  class CloudListener : public fdds::DataReaderListener {
+   public:
+    explicit CloudListener(Impl* impl) : impl_(impl) {}
+    void on_data_available(fdds::DataReader* reader) override { impl_->OnClouds(reader); }
+    void on_subscription_matched(fdds::DataReader*,
+                                 const fdds::SubscriptionMatchedStatus& s) override {
+      Log(Level::kInfo, "points: " + std::to_string(s.current_count) + " publisher(s) matched");
+    }
+    void on_requested_incompatible_qos(fdds::DataReader*,
+                                       const fdds::RequestedIncompatibleQosStatus&) override {
+      Log(Level::kWarn, "points: a publisher with incompatible QoS was ignored (reliability?)");
+    }
+
+   private:
+    Impl* impl_;
+  };
+  class ImuListener : public fdds::DataReaderListener {
+   public:
+    explicit ImuListener(Impl* impl) : impl_(impl) {}
+    void on_data_available(fdds::DataReader* reader) override { impl_->OnImu(reader); }
+    void on_subscription_matched(fdds::DataReader*,
+                                 const fdds::SubscriptionMatchedStatus& s) override {
+      Log(Level::kInfo, "imu: " + std::to_string(s.current_count) + " publisher(s) matched");
+    }
+    void on_requested_incompatible_qos(fdds::DataReader*,
+                                       const fdds::RequestedIncompatibleQosStatus&) override {
+      Log(Level::kWarn, "imu: a publisher with incompatible QoS was ignored (reliability?)");
+    }
+
+   private:
+    Impl* impl_;
+  };
+
+  void OnClouds(fdds::DataReader* reader) {
+    while (true) {
+      const Clock::time_point received = Clock::now();
+      Validated<sensor_msgs::msg::PointCloud2> sample;
+      fdds::SampleInfo info;
+      if (reader->take_next_sample(&sample, &info) != ReturnCode_t::RETCODE_OK) break;
+      if (!info.valid_data) continue;
+      if (!accepting.load()) continue;
+      {
+        std::lock_guard<std::mutex> lock(stats_mutex);
+        ++summary.scans_received;
+      }
+      std::string error;
+      if (sample.valid) {
+        if (!bridge::ToCloudView(sample.msg, &error)) sample.valid = false;
+      } else {
+        error = sample.error;
+      }
+      if (!sample.valid) {
+        {
+          std::lock_guard<std::mutex> lock(stats_mutex);
+          ++summary.scans_malformed;
+        }
+        malformed_log.Log(Level::kWarn, "rejected malformed PointCloud2 on " +
+                                            RosTopicToDds(config.points_topic) + " (" +
+                                            std::to_string(sample.payload_size) + " bytes): " +
+                                            error);
+        continue;
+      }
+      const double stamp = bridge::ToSeconds(sample.msg.header().stamp());
+      auto msg = std::make_shared<sensor_msgs::msg::PointCloud2>(std::move(sample.msg));
+      auto pushed = scan_queue.Push(stamp, ScanItem{std::move(msg), received, Clock::now()});
+      if (pushed.evicted) {
+        {
+          std::lock_guard<std::mutex> lock(stats_mutex);
+          ++summary.scans_dropped;
+        }
+        drop_log.Log(Level::kWarn, "core behind: dropped the oldest queued scan (stamp " +
+                                       std::to_string(bridge::ToSeconds(
+                                           pushed.evicted->msg->header().stamp())) +
+                                       ")");
+      }
+    }
+  }
+
+  void OnImu(fdds::DataReader* reader) {
+    OnImuSamples(reader);
+    // Wake the executor: a queued scan may be waiting for IMU that covers its end.
+    scan_queue.Notify();
+  }
+
+  void OnImuSamples(fdds::DataReader* reader) {
+    while (true) {
+      Validated<sensor_msgs::msg::Imu> sample;
+      fdds::SampleInfo info;
+      if (reader->take_next_sample(&sample, &info) != ReturnCode_t::RETCODE_OK) break;
+      if (!info.valid_data) continue;
+      if (!accepting.load()) continue;
+      std::string error = sample.error;
+      std::optional<ImuSample> imu;
+      if (sample.valid) imu = bridge::ToImuSample(sample.msg, &error);
+      if (!imu) {
+        {
+          std::lock_guard<std::mutex> lock(stats_mutex);
+          ++summary.imu_received;
+          ++summary.imu_malformed;
+        }
+        malformed_log.Log(Level::kWarn, "rejected malformed Imu on " +
+                                            RosTopicToDds(config.imu_topic) + ": " + error);
+        continue;
+      }
+      auto pushed = imu_queue.Push(imu->stamp_s, ImuItem{*imu});
+      std::lock_guard<std::mutex> lock(stats_mutex);
+      ++summary.imu_received;
+      if (pushed.out_of_order) ++summary.imu_out_of_order;
+      if (pushed.evicted) {
+        ++summary.imu_overflow;
+        // Loud on purpose: losing IMU silently would corrupt the state estimate.
+        Log(Level::kError, "IMU queue full (" + std::to_string(imu_queue.capacity()) +
+                               "): dropped IMU sample at " +
+                               std::to_string(pushed.evicted->sample.stamp_s) +
+                               "; the core is stalled (total IMU dropped: " +
+                               std::to_string(summary.imu_overflow) + ")");
+      }
+    }
+  }
+
+  // ---- executor thread ------------------------------------------------------------------------
+  void ExecutorLoop() {
+    uint64_t seen = 0;
+    while (true) {
+      const bool draining = drain_requested.load();
+      if (!draining) scan_queue.WaitForChange(&seen, std::chrono::milliseconds(50));
+      // IMU first: a scan can only be processed once IMU covers its end.
+      std::deque<std::pair<double, ImuItem>> imus;
+      imu_queue.PopAll(&imus);
+      for (auto& [stamp, item] : imus) {
+        (void)stamp;
+        core->AddImu(item.sample);
+        last_gyro = item.sample.angular_velocity;
+      }
+      if (!imus.empty() && !pending.empty()) RunCore(false);
+      while (auto scan = scan_queue.PopFront()) {
+        AddScan(std::move(scan->second));
+        RunCore(false);
+        // IMU that arrived while the core worked: feed it before the next scan.
+        imus.clear();
+        imu_queue.PopAll(&imus);
+        for (auto& [stamp, item] : imus) {
+          (void)stamp;
+          core->AddImu(item.sample);
+          last_gyro = item.sample.angular_velocity;
+        }
+      }
+      if (draining && scan_queue.Size() == 0 && imu_queue.Size() == 0) {
+        if (!pending.empty()) RunCore(true);  // remaining scans, IMU extrapolated
+        break;
+      }
+    }
+  }
+
+  void AddScan(ScanItem item) {
+    const Clock::time_point t0 = Clock::now();
+    std::optional<CloudView> view = bridge::ToCloudView(*item.msg);
+    core->AddScan(*view);  // listener checked the view; the core copies what it needs
+    PendingScan p;
+    p.received = item.received;
+    p.decode_ms = MsBetween(item.received, item.queued);
+    p.queue_ms = MsBetween(item.queued, t0);
+    p.added = Clock::now();
+    p.add_scan_ms = MsBetween(t0, p.added);
+    if (config.publish_registered_points) p.msg = std::move(item.msg);
+    pending.push_back(std::move(p));
+  }
+
+  void RunCore(bool flush) {
+    const Clock::time_point t0 = Clock::now();
+    std::vector<ScanResult> results = core->Process(flush);
+    const double process_ms = MsBetween(t0, Clock::now());
+    // Core time of a result: its AddScan plus its share of the Process call (by the core's own
+    // per-scan timings when one call returns several scans).
+    double total = 0.0;
+    for (const ScanResult& r : results) total += r.timings.total;
+    for (const ScanResult& r : results) {
+      if (pending.empty()) break;  // cannot happen: one result per AddScan
+      PendingScan p = std::move(pending.front());
+      pending.pop_front();
+      const double share = results.size() == 1 ? 1.0
+                           : total > 0.0       ? r.timings.total / total
+                                               : 1.0 / static_cast<double>(results.size());
+      // A scan whose IMU coverage was incomplete waited in the core until this call.
+      const double imu_wait_ms = std::max(0.0, MsBetween(p.added, t0));
+      Publish(r, p, p.add_scan_ms + share * process_ms, imu_wait_ms);
+    }
+  }
+
+  void Publish(const ScanResult& r, const PendingScan& p, double core_ms, double imu_wait_ms) {
+    {
+      std::lock_guard<std::mutex> lock(stats_mutex);
+      ++summary.scans_processed;
+      summary.last_status = StatusName(r.status);
+      if (r.status == Status::kRejected) ++summary.scans_rejected;
+      if (r.status == Status::kInitializing) ++summary.scans_initializing;
+      if (r.status == Status::kReset) ++summary.resets;
+      if (r.status == Status::kDegenerate) ++summary.degenerate;
+    }
+    if (r.status == Status::kRejected || r.status == Status::kReset) {
+      status_log.Log(Level::kWarn, std::string("core: ") + StatusName(r.status) + ": " + r.reason);
+    }
+    if (!r.pose_valid) return;
+    bridge::OdometryFrames frames{config.odom_frame, config.base_frame};
+    nav_msgs::msg::Odometry odom = bridge::ToOdometryMsg(r, frames, last_gyro - r.gyro_bias);
+    odometry_writer->write(&odom);
+    if (tf_writer) {
+      tf2_msgs::msg::TFMessage tf = bridge::ToTfMessage(r, frames);
+      tf_writer->write(&tf);
+    }
+    if (path_writer) {
+      path.poses().push_back(bridge::ToPoseStamped(r, config.odom_frame));
+      if (path.poses().size() > static_cast<size_t>(config.path_max_poses)) {
+        path.poses().erase(path.poses().begin());
+      }
+      path.header() = path.poses().back().header();
+      path_writer->write(&path);
+    }
+    if (planes_writer) {
+      // The planes fitted in this scan (missed_scans == 0), world = odom frame. In kNN mode there
+      // is no tracker and the message is empty, still one per scan.
+      std::vector<SkeletonPlane> fitted;
+      std::vector<int64_t> incremental;
+      if (tracker) {
+        for (const SkeletonPlane& sp : tracker->window().planes()) {
+          if (sp.missed_scans == 0) fitted.push_back(sp);
+        }
+        const auto& prefit = tracker->last_prefit().planes;
+        const auto& ids = tracker->last_track_ids();
+        for (size_t i = 0; i < prefit.size() && i < ids.size(); ++i) {
+          if (prefit[i].from_guess) incremental.push_back(ids[i]);
+        }
+      }
+      ppf_msgs::msg::SkeletonPlaneArray planes =
+          bridge::ToSkeletonPlaneArray(fitted, r.stamp_s, config.odom_frame, incremental);
+      planes_writer->write(&planes);
+    }
+    if (registered_writer && p.msg) PublishRegistered(r, *p.msg);
+    const Clock::time_point published = Clock::now();
+    trajectory.push_back(r);
+
+    const double latency = MsBetween(p.received, published);
+    std::lock_guard<std::mutex> lock(stats_mutex);
+    ++summary.odometry_published;
+    latency_ms.Add(latency);
+    core_time_ms.Add(core_ms);
+    imu_wait_stats.Add(imu_wait_ms);
+    decode_stats.Add(p.decode_ms);
+    queue_stats.Add(p.queue_ms);
+    // Node overhead: everything between DDS receive and publish that is not the core working or
+    // the scan waiting for the IMU that covers its end (a property of the input, reported apart).
+    overhead_ms.Add(latency - core_ms - imu_wait_ms);
+  }
+
+  // Input points moved to the odom frame with the scan-end pose (not de-skewed: the core keeps
+  // its de-skewed cloud internal). x, y, z float32 only.
+  void PublishRegistered(const ScanResult& r, const sensor_msgs::msg::PointCloud2& in) {
+    int ox = -1, oy = -1, oz = -1;
+    for (const auto& f : in.fields()) {
+      if (f.datatype() != 7) continue;
+      if (f.name() == "x") ox = static_cast<int>(f.offset());
+      if (f.name() == "y") oy = static_cast<int>(f.offset());
+      if (f.name() == "z") oz = static_cast<int>(f.offset());
+    }
+    if (ox < 0 || oy < 0 || oz < 0 || in.is_bigendian()) return;
+    const size_t n = static_cast<size_t>(in.width()) * in.height();
+    const size_t step = in.point_step();
+    if (step == 0 || in.data().size() < n * step) return;
+    sensor_msgs::msg::PointCloud2 out;
+    out.header().stamp(bridge::TimeFromSeconds(r.stamp_s));
+    out.header().frame_id(config.odom_frame);
+    out.height(1);
+    const char* names[] = {"x", "y", "z"};
+    for (uint32_t i = 0; i < 3; ++i) {
+      sensor_msgs::msg::PointField f;
+      f.name(names[i]);
+      f.offset(4 * i);
+      f.datatype(7);
+      f.count(1);
+      out.fields().push_back(f);
+    }
+    out.point_step(12);
+    out.is_bigendian(false);
+    out.is_dense(true);
+    std::vector<uint8_t>& data = out.data();
+    data.resize(n * 12);
+    const Eigen::Isometry3d& T = r.T_world_lidar;
+    size_t kept = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const uint8_t* p = in.data().data() + i * step;
+      float v[3];
+      std::memcpy(&v[0], p + ox, 4);
+      std::memcpy(&v[1], p + oy, 4);
+      std::memcpy(&v[2], p + oz, 4);
+      if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2])) continue;
+      const Eigen::Vector3d w = T * Eigen::Vector3d(v[0], v[1], v[2]);
+      const float o[3] = {static_cast<float>(w.x()), static_cast<float>(w.y()),
+                          static_cast<float>(w.z())};
+      std::memcpy(data.data() + kept * 12, o, 12);
+      ++kept;
+    }
+    data.resize(kept * 12);
+    out.width(static_cast<uint32_t>(kept));
+    out.row_step(static_cast<uint32_t>(kept * 12));
+    registered_writer->write(&out);
+  }
+
+  bool WriteTum(std::string* error) {
+    std::ofstream out(config.tum_file);
+    if (!out) {
+      *error = "cannot write trajectory file '" + config.tum_file + "'";
+      return false;
+    }
+    out << std::fixed;
+    for (const ScanResult& r : trajectory) {
+      const Eigen::Vector3d p = r.T_world_imu.translation();
+      Eigen::Quaterniond q(r.T_world_imu.linear());
+      q.normalize();
+      out << std::setprecision(9) << r.stamp_s << ' ' << p.x() << ' ' << p.y() << ' ' << p.z()
+          << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
+    }
+    out.flush();
+    if (!out) {
+      *error = "error writing '" + config.tum_file + "'";
+      return false;
+    }
+    return true;
+  }
+
+  NodeSummary Snapshot() const {
+    std::lock_guard<std::mutex> lock(stats_mutex);
+    NodeSummary s = summary;
+    s.latency_p50_ms = latency_ms.Percentile(50);
+    s.latency_p99_ms = latency_ms.Percentile(99);
+    s.latency_max_ms = latency_ms.Max();
+    s.core_p50_ms = core_time_ms.Percentile(50);
+    s.core_p99_ms = core_time_ms.Percentile(99);
+    s.overhead_p50_ms = overhead_ms.Percentile(50);
+    s.overhead_p99_ms = overhead_ms.Percentile(99);
+    s.overhead_max_ms = overhead_ms.Max();
+    s.imu_wait_p50_ms = imu_wait_stats.Percentile(50);
+    s.imu_wait_p99_ms = imu_wait_stats.Percentile(99);
+    s.decode_p50_ms = decode_stats.Percentile(50);
+    s.decode_p99_ms = decode_stats.Percentile(99);
+    s.queue_p50_ms = queue_stats.Percentile(50);
+    s.queue_p99_ms = queue_stats.Percentile(99);
+    return s;
+  }
+
+  void LogPeriodic(size_t* latency_mark) {
+    NodeSummary s;
+    double lat50, lat99, ovh99;
+    size_t n;
+    {
+      std::lock_guard<std::mutex> lock(stats_mutex);
+      s = summary;
+      n = latency_ms.count();
+      lat50 = latency_ms.PercentileSince(*latency_mark, 50);
+      lat99 = latency_ms.PercentileSince(*latency_mark, 99);
+      ovh99 = overhead_ms.PercentileSince(*latency_mark, 99);
+    }
+    std::ostringstream o;
+    o << std::fixed << std::setprecision(2) << "status=" << (s.last_status.empty() ? "waiting" : s.last_status)
+      << " scans rx=" << s.scans_received << " proc=" << s.scans_processed
+      << " odom=" << s.odometry_published << " dropped=" << s.scans_dropped
+      << " malformed=" << s.scans_malformed + s.imu_malformed << " imu rx=" << s.imu_received
+      << " queues scan=" << scan_queue.Size() << "/" << scan_queue.capacity()
+      << " imu=" << imu_queue.Size() << " | last " << (n - *latency_mark)
+      << " scans: latency p50=" << lat50 << " p99=" << lat99 << " ms, overhead p99=" << ovh99
+      << " ms";
+    Log(Level::kInfo, o.str());
+    *latency_mark = n;
+  }
+
+  NodeConfig config;
+  std::unique_ptr<LioPpf> core;
+  std::shared_ptr<SkeletonTracker> tracker;  // kPpf only
+
+  fdds::DomainParticipant* participant = nullptr;
+  fdds::Publisher* publisher = nullptr;
+  fdds::Subscriber* subscriber = nullptr;
+  fdds::DataWriter* odometry_writer = nullptr;
+  fdds::DataWriter* tf_writer = nullptr;
+  fdds::DataWriter* path_writer = nullptr;
+  fdds::DataWriter* planes_writer = nullptr;
+  fdds::DataWriter* registered_writer = nullptr;
+  fdds::DataReader* points_reader = nullptr;
+  fdds::DataReader* imu_reader = nullptr;
+  fdds::TypeSupport odom_type{new nav_msgs::msg::OdometryPubSubType()};
+  fdds::TypeSupport tf_type{new tf2_msgs::msg::TFMessagePubSubType()};
+  fdds::TypeSupport path_type{new nav_msgs::msg::PathPubSubType()};
+  fdds::TypeSupport planes_type{new ppf_msgs::msg::SkeletonPlaneArrayPubSubType()};
+  fdds::TypeSupport cloud_out_type{new sensor_msgs::msg::PointCloud2PubSubType()};
+  fdds::TypeSupport cloud_in_type{new ValidatingPubSubType<sensor_msgs::msg::PointCloud2>()};
+  fdds::TypeSupport imu_in_type{new ValidatingPubSubType<sensor_msgs::msg::Imu>()};
+  std::unique_ptr<CloudListener> cloud_listener;
+  std::unique_ptr<ImuListener> imu_listener;
+
+  TimeOrderedQueue<ScanItem> scan_queue;
+  TimeOrderedQueue<ImuItem> imu_queue;
+  std::atomic<bool> accepting{true};
+  std::atomic<bool> drain_requested{false};
+  std::atomic<bool> stop_requested{false};
+  std::mutex stop_mutex;
+  std::condition_variable stop_cv;
+
+  // Executor-thread state.
+  std::deque<PendingScan> pending;
+  Eigen::Vector3d last_gyro = Eigen::Vector3d::Zero();
+  nav_msgs::msg::Path path;
+  std::vector<ScanResult> trajectory;
+
+  RateLimitedLog malformed_log;
+  RateLimitedLog drop_log;
+  RateLimitedLog status_log{1.0};
+
+  mutable std::mutex stats_mutex;
+  NodeSummary summary;
+  LatencyStats latency_ms, core_time_ms, overhead_ms, imu_wait_stats, decode_stats, queue_stats;
+  bool torn_down = false;
+
+  void TearDown() {
+    if (torn_down) return;
+    torn_down = true;
+    if (participant) {
+      participant->delete_contained_entities();
+      fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
+      participant = nullptr;
+    }
+  }
+};
+
+PpfNode::PpfNode(const NodeConfig& config) : impl_(std::make_unique<Impl>(config)) {}
+
+PpfNode::~PpfNode() { impl_->TearDown(); }
+
+bool PpfNode::init(std::string* error) {
+  Impl& m = *impl_;
+  const NodeConfig& c = m.config;
+
+  // Core first: a bad core config must fail before we appear on the network.
+  Config core_config;
+  if (!c.core_config_file.empty()) {
+    ConfigLoadReport rep = LoadConfigYaml(c.core_config_file, &core_config);
+    for (const auto& w : rep.warnings) Log(Level::kWarn, "core config: " + w);
+    if (!rep.ok) {
+      *error = "core config '" + c.core_config_file + "': " + rep.error;
+      return false;
+    }
+  }
+  for (const auto& note : ValidateConfig(&core_config)) Log(Level::kWarn, "core config: " + note);
+  core_config.log = [](LogLevel level, const std::string& msg) {
+    const Level l = level == LogLevel::kError  ? Level::kError
+                    : level == LogLevel::kWarn ? Level::kWarn
+                    : level == LogLevel::kInfo ? Level::kInfo
+                                               : Level::kDebug;
+    if (l != Level::kDebug) Log(l, "core: " + msg);
+  };
+  m.core = std::make_unique<LioPpf>(core_config);
+  if (core_config.mode == Mode::kPpf) {
+    // The facade leaves plane pre-fitting to its caller (lio_ppf.hpp EXTENSION POINT); the node
+    // installs it so the skeleton planes can be published.
+    PpfConfig ppf_config;
+    if (!c.core_config_file.empty()) {
+      std::ifstream in(c.core_config_file);
+      std::stringstream text;
+      text << in.rdbuf();
+      PpfConfigLoadReport rep = LoadPpfConfigYamlString(text.str(), &ppf_config);
+      for (const auto& w : rep.warnings) Log(Level::kWarn, "ppf config: " + w);
+      if (!rep.ok) {
+        *error = "ppf config '" + c.core_config_file + "': " + rep.error;
+        return false;
+      }
+    }
+    m.tracker = std::make_shared<SkeletonTracker>(ppf_config);
+    m.core->SetScanSplitter(m.tracker);
+    m.core->AddResidualProvider(m.tracker->residual_provider());
+  }
+
+  m.participant = CreateParticipant(c.participant, error);
+  if (!m.participant) return false;
+
+  m.publisher = m.participant->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
+  m.subscriber = m.participant->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
+  if (!m.publisher || !m.subscriber) {
+    *error = "cannot create publisher/subscriber";
+    return false;
+  }
+
+  // Writers (ROS 2 QoS conventions, ROS2-INTEROP.md).
+  m.odometry_writer = CreateWriter<nav_msgs::msg::Odometry>(
+      m.participant, m.publisher, &m.odom_type, c.odometry_topic, DefaultWriterQos(10), error);
+  if (!m.odometry_writer) return false;
+  if (c.publish_skeleton_planes) {
+    m.planes_writer = CreateWriter<ppf_msgs::msg::SkeletonPlaneArray>(
+        m.participant, m.publisher, &m.planes_type, c.skeleton_planes_topic, DefaultWriterQos(10),
+        error);
+    if (!m.planes_writer) return false;
+  }
+  if (c.publish_tf) {
+    m.tf_writer = CreateWriter<tf2_msgs::msg::TFMessage>(m.participant, m.publisher, &m.tf_type,
+                                                         c.tf_topic, TfWriterQos(), error);
+    if (!m.tf_writer) return false;
+  }
+  if (c.publish_path) {
+    // Each message is the whole bounded path: only the latest matters.
+    m.path_writer = CreateWriter<nav_msgs::msg::Path>(m.participant, m.publisher, &m.path_type,
+                                                      c.path_topic, DefaultWriterQos(1), error);
+    if (!m.path_writer) return false;
+  }
+  if (c.publish_registered_points) {
+    // Reliable matches both reliable and best-effort readers (RViz either way); depth 2 bounds
+    // the memory held for slow readers.
+    m.registered_writer = CreateWriter<sensor_msgs::msg::PointCloud2>(
+        m.participant, m.publisher, &m.cloud_out_type, c.registered_points_topic,
+        DefaultWriterQos(2), error);
+    if (!m.registered_writer) return false;
+  }
+
+  // Readers last: data may flow as soon as they exist.
+  m.cloud_in_type.register_type(m.participant);
+  m.imu_in_type.register_type(m.participant);
+  fdds::Topic* points_topic = m.participant->create_topic(
+      RosTopicToDds(c.points_topic), m.cloud_in_type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+  fdds::Topic* imu_topic = m.participant->create_topic(
+      RosTopicToDds(c.imu_topic), m.imu_in_type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+  if (!points_topic || !imu_topic) {
+    *error = "cannot create input topics";
+    return false;
+  }
+  m.cloud_listener = std::make_unique<Impl::CloudListener>(&m);
+  m.imu_listener = std::make_unique<Impl::ImuListener>(&m);
+  m.points_reader = m.subscriber->create_datareader(
+      points_topic, SensorReaderQos(c.sensor_reliability, c.sensor_depth), m.cloud_listener.get());
+  // IMU: deeper reader history than clouds, a burst of 400 Hz samples must not be overwritten
+  // before the listener takes them.
+  m.imu_reader = m.subscriber->create_datareader(
+      imu_topic, SensorReaderQos(c.sensor_reliability, std::max(c.sensor_depth, 100)),
+      m.imu_listener.get());
+  if (!m.points_reader || !m.imu_reader) {
+    *error = "cannot create input readers";
+    return false;
+  }
+  Log(Level::kInfo, "ppf_node up: domain " + std::to_string(c.participant.domain_id) + ", in " +
+                        RosTopicToDds(c.points_topic) + " + " + RosTopicToDds(c.imu_topic) + " (" +
+                        (c.sensor_reliability == Reliability::kBestEffort ? "best effort"
+                                                                          : "reliable") +
+                        "), out " + RosTopicToDds(c.odometry_topic) + " [" + c.odom_frame +
+                        " -> " + c.base_frame + "]");
+  return true;
+}
+
+void PpfNode::run() {
+  Impl& m = *impl_;
+  std::thread executor([&m] { m.ExecutorLoop(); });
+  size_t latency_mark = 0;
+  auto next_log = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>(m.config.diagnostics_period_s));
+  {
+    std::unique_lock<std::mutex> lock(m.stop_mutex);
+    while (!m.stop_requested.load()) {
+      m.stop_cv.wait_until(lock, next_log, [&m] { return m.stop_requested.load(); });
+      if (m.stop_requested.load()) break;
+      if (Clock::now() >= next_log) {
+        lock.unlock();
+        m.LogPeriodic(&latency_mark);
+        lock.lock();
+        next_log += std::chrono::duration_cast<Clock::duration>(
+            std::chrono::duration<double>(m.config.diagnostics_period_s));
+      }
+    }
+  }
+  // Drain: stop accepting, process what is queued, flush the core.
+  m.accepting = false;
+  m.drain_requested = true;
+  m.scan_queue.Notify();
+  executor.join();
+  if (!m.config.tum_file.empty()) {
+    std::string error;
+    if (m.WriteTum(&error)) {
+      Log(Level::kInfo, "trajectory: " + std::to_string(m.trajectory.size()) + " poses -> " +
+                            m.config.tum_file);
+    } else {
+      Log(Level::kError, error);
+    }
+  }
+  // Give reliable readers a moment to receive the last outputs before the writers go away.
+  if (m.odometry_writer) m.odometry_writer->wait_for_acknowledgments({1, 0});
+  m.TearDown();
+}
+
+void PpfNode::stop() {
+  {
+    std::lock_guard<std::mutex> lock(impl_->stop_mutex);
+    impl_->stop_requested = true;
+  }
+  impl_->stop_cv.notify_all();
+}
+
+NodeSummary PpfNode::summary() const { return impl_->Snapshot(); }
+
+std::string PpfNode::FormatSummary(const NodeSummary& s) {
+  std::ostringstream o;
+  o << std::fixed << std::setprecision(3) << "scans_received=" << s.scans_received
+    << " scans_processed=" << s.scans_processed << " odometry_published=" << s.odometry_published
+    << " scans_dropped=" << s.scans_dropped << " scans_malformed=" << s.scans_malformed
+    << " scans_rejected=" << s.scans_rejected << " scans_initializing=" << s.scans_initializing
+    << " resets=" << s.resets << " degenerate=" << s.degenerate
+    << " imu_received=" << s.imu_received << " imu_malformed=" << s.imu_malformed
+    << " imu_overflow=" << s.imu_overflow << " imu_out_of_order=" << s.imu_out_of_order
+    << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
+    << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
+    << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms
+    << " overhead_p99_ms=" << s.overhead_p99_ms << " overhead_max_ms=" << s.overhead_max_ms
+    << " imu_wait_p50_ms=" << s.imu_wait_p50_ms << " imu_wait_p99_ms=" << s.imu_wait_p99_ms
+    << " decode_p50_ms=" << s.decode_p50_ms << " decode_p99_ms=" << s.decode_p99_ms
+    << " queue_p50_ms=" << s.queue_p50_ms << " queue_p99_ms=" << s.queue_p99_ms
+    << " last_status=" << (s.last_status.empty() ? "none" : s.last_status);
+  return o.str();
+}
+
+}  // namespace ppf::dds

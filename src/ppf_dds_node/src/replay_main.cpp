@@ -1,0 +1,232 @@
+// ppf_replay: publishes a rosbag2 bag (sqlite3 or MCAP) on DDS with its recorded timing, like
+// `ros2 bag play`. Payloads go out byte for byte as stored (raw topic type with the ROS DDS type
+// name), so any message type replays without being decoded.
+#include <signal.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/DataWriterListener.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+
+#include "ppf_bag/bag.hpp"
+#include "ppf_dds_node/cli.hpp"
+#include "ppf_dds_node/dds_common.hpp"
+#include "ppf_dds_node/logging.hpp"
+#include "ppf_dds_node/raw_type.hpp"
+
+namespace fdds = eprosima::fastdds::dds;
+using ppf::dds::Level;
+using ppf::dds::Log;
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void OnSignal(int) { g_stop = true; }
+
+void Usage() {
+  std::fprintf(stderr,
+               "usage: ppf_replay --bag DIR [--rate R] [--loop] [--start SEC] [--topics T ...]\n"
+               "                  [--remap FROM:=TO ...] [--best-effort] [--depth N]\n"
+               "                  [--wait-matched SEC] [--domain ID] [--profiles XML] "
+               "[--profile NAME]\n"
+               "  --rate R          playback speed factor (default 1)\n"
+               "  --loop            start over at the end (until SIGINT)\n"
+               "  --start SEC       skip the first SEC seconds of the bag\n"
+               "  --topics T ...    only these topics (default: all)\n"
+               "  --remap F:=T      publish topic F as T\n"
+               "  --best-effort     best-effort writers (default reliable, which matches both\n"
+               "                    reliable and best-effort readers)\n"
+               "  --depth N         writer history depth per topic (default 50)\n"
+               "  --wait-matched S  before playing, wait up to S s until every writer has a reader\n");
+}
+
+class MatchCounter : public fdds::DataWriterListener {
+ public:
+  void on_publication_matched(fdds::DataWriter*, const fdds::PublicationMatchedStatus& s) override {
+    matched = s.current_count;
+  }
+  std::atomic<int> matched{0};
+};
+
+struct TopicOut {
+  std::string ros_name;
+  fdds::TypeSupport type;
+  fdds::DataWriter* writer = nullptr;
+  std::unique_ptr<MatchCounter> matches;
+  uint64_t count = 0;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string bag_dir;
+  double rate = 1.0, start_s = 0.0, wait_matched_s = 0.0;
+  bool loop = false, best_effort = false;
+  int depth = 50;
+  std::vector<std::string> topics;
+  std::map<std::string, std::string> remap;
+  ppf::dds::DdsCliOptions dds;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (ppf::dds::ParseDdsOption(argc, argv, &i, &dds)) continue;
+    if (a == "--bag" && i + 1 < argc) {
+      bag_dir = argv[++i];
+    } else if (a == "--rate" && i + 1 < argc) {
+      rate = std::atof(argv[++i]);
+    } else if (a == "--start" && i + 1 < argc) {
+      start_s = std::atof(argv[++i]);
+    } else if (a == "--loop") {
+      loop = true;
+    } else if (a == "--best-effort") {
+      best_effort = true;
+    } else if (a == "--depth" && i + 1 < argc) {
+      depth = std::max(1, std::atoi(argv[++i]));
+    } else if (a == "--wait-matched" && i + 1 < argc) {
+      wait_matched_s = std::atof(argv[++i]);
+    } else if (a == "--topics") {
+      topics = ppf::dds::TakeList(argc, argv, &i);
+    } else if (a == "--remap") {
+      for (const std::string& r : ppf::dds::TakeList(argc, argv, &i)) {
+        const size_t sep = r.find(":=");
+        if (sep == std::string::npos) {
+          Log(Level::kError, "--remap expects FROM:=TO, got '" + r + "'");
+          return 2;
+        }
+        remap[r.substr(0, sep)] = r.substr(sep + 2);
+      }
+    } else {
+      Usage();
+      return a == "-h" || a == "--help" ? 0 : 2;
+    }
+  }
+  if (bag_dir.empty() || !(rate > 0.0)) {
+    Usage();
+    return 2;
+  }
+
+  std::unique_ptr<ppf::bag::Reader> reader;
+  try {
+    reader = std::make_unique<ppf::bag::Reader>(bag_dir);
+    if (!topics.empty()) reader->SetTopicFilter(topics);
+  } catch (const std::exception& e) {
+    Log(Level::kError, e.what());
+    return 1;
+  }
+  const ppf::bag::BagInfo& info = reader->Info();
+
+  ppf::dds::ParticipantOptions popt{dds.domain_id, dds.profiles_file, dds.profile_name,
+                                    "ppf_replay"};
+  std::string error;
+  fdds::DomainParticipant* participant = ppf::dds::CreateParticipant(popt, &error);
+  if (!participant) {
+    Log(Level::kError, error);
+    return 1;
+  }
+  fdds::Publisher* publisher = participant->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
+  std::map<std::string, TopicOut> outs;  // by bag topic name
+  for (const auto& t : info.topics) {
+    if (!topics.empty() && std::find(topics.begin(), topics.end(), t.info.name) == topics.end()) {
+      continue;
+    }
+    const std::string dds_type = ppf::dds::RosTypeToDds(t.info.type);
+    if (dds_type.empty() || t.info.serialization_format != "cdr") {
+      Log(Level::kWarn, "skipping " + t.info.name + ": type '" + t.info.type + "' / format '" +
+                            t.info.serialization_format + "' cannot go on DDS");
+      continue;
+    }
+    TopicOut& out = outs[t.info.name];
+    out.ros_name = remap.count(t.info.name) ? remap[t.info.name] : t.info.name;
+    out.type = fdds::TypeSupport(new ppf::dds::RawPubSubType(dds_type));
+    out.type.register_type(participant);
+    fdds::Topic* topic = participant->create_topic(ppf::dds::RosTopicToDds(out.ros_name), dds_type,
+                                                   fdds::TOPIC_QOS_DEFAULT);
+    out.matches = std::make_unique<MatchCounter>();
+    const auto qos = ppf::dds::SensorWriterQos(
+        best_effort ? ppf::dds::Reliability::kBestEffort : ppf::dds::Reliability::kReliable, depth);
+    out.writer = topic ? publisher->create_datawriter(topic, qos, out.matches.get()) : nullptr;
+    if (!out.writer) {
+      Log(Level::kError, "cannot create writer for " + out.ros_name);
+      participant->delete_contained_entities();
+      fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
+      return 1;
+    }
+    Log(Level::kInfo, "replaying " + t.info.name + " -> " + ppf::dds::RosTopicToDds(out.ros_name) +
+                          " [" + dds_type + "], " + std::to_string(t.message_count) + " messages");
+  }
+
+  signal(SIGINT, OnSignal);
+  signal(SIGTERM, OnSignal);
+
+  if (wait_matched_s > 0.0) {
+    const auto deadline = std::chrono::steady_clock::now() +
+                          std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                              std::chrono::duration<double>(wait_matched_s));
+    bool all = false;
+    while (!g_stop && !all && std::chrono::steady_clock::now() < deadline) {
+      all = true;
+      for (auto& [name, out] : outs) all = all && out.matches->matched > 0;
+      if (!all) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    if (!all) Log(Level::kWarn, "not every topic has a subscriber; playing anyway");
+  }
+  std::printf("PPF_REPLAY_START topics=%zu\n", outs.size());
+  std::fflush(stdout);
+
+  const int64_t start_ns = info.start_ns + static_cast<int64_t>(std::llround(start_s * 1e9));
+  if (start_s > 0.0) reader->Seek(start_ns);
+  uint64_t total = 0;
+  int loops = 0;
+  bool failed = false;
+  ppf::dds::RawMessage raw;
+  while (!g_stop) {
+    const auto wall0 = std::chrono::steady_clock::now();
+    int64_t bag0 = -1;
+    ppf::bag::Message msg;
+    try {
+      while (!g_stop && reader->Next(msg)) {
+        auto it = outs.find(msg.topic);
+        if (it == outs.end()) continue;
+        if (bag0 < 0) bag0 = msg.timestamp_ns;
+        const double offset_s = static_cast<double>(msg.timestamp_ns - bag0) * 1e-9 / rate;
+        const auto due = wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                     std::chrono::duration<double>(offset_s));
+        std::this_thread::sleep_until(due);
+        raw.payload = std::move(msg.data);
+        if (!it->second.writer->write(&raw)) {
+          Log(Level::kWarn, "write failed on " + it->second.ros_name);
+        } else {
+          ++it->second.count;
+          ++total;
+        }
+      }
+    } catch (const std::exception& e) {
+      Log(Level::kError, e.what());
+      failed = true;
+      break;
+    }
+    ++loops;
+    if (!loop || g_stop) break;
+    reader->Seek(start_ns);  // rewinds; stamps loop back in time, the node must cope
+  }
+  // Reliable readers: let them fetch the tail before the writers disappear.
+  for (auto& [name, out] : outs) out.writer->wait_for_acknowledgments({5, 0});
+  std::string counts;
+  for (auto& [name, out] : outs) counts += " " + name + "=" + std::to_string(out.count);
+  std::printf("PPF_REPLAY_DONE messages=%llu loops=%d%s\n", (unsigned long long)total, loops,
+              counts.c_str());
+  std::fflush(stdout);
+  participant->delete_contained_entities();
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
+  return failed ? 1 : 0;
+}

@@ -123,7 +123,9 @@ TEST_P(SimBag, ReadableWithRightCountsTypesAndBytes) {
   EXPECT_EQ(line[0], '#');
   int rows = 0;
   while (std::getline(gt, line)) {
-    if (rows == 250) EXPECT_EQ(line, TumLine(cfg.start_ns + 250 * 5000000LL, world.trajectory.Pose(1.25)));
+    if (rows == 250) {
+      EXPECT_EQ(line, TumLine(cfg.start_ns + 250 * 5000000LL, world.trajectory.Pose(1.25)));
+    }
     ++rows;
   }
   EXPECT_EQ(rows, 601);

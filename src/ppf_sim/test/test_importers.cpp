@@ -69,7 +69,7 @@ TEST(KittiImport, SyntheticDriveRoundTrip) {
     std::ofstream f(raw / "oxts" / "data" / name);
     for (int k = 0; k < 30; ++k) f << (k == 11 ? 0.5 + i : k == 13 ? 9.8 : k == 19 ? 0.01 * i : 0.0) << (k < 29 ? " " : "\n");
     char t[64];
-    std::snprintf(t, sizeof(t), "2011-09-26 13:02:%02d.%09d", 25 + (90 + i * 10) / 100, ((90 + i * 10) % 100) * 10000000);
+    std::snprintf(t, sizeof(t), "2011-09-26 13:02:%02d.%09d", 25 + (90 + i) / 100, ((90 + i) % 100) * 10000000);  // 100 Hz
     ot << t << "\n";
   }
   ot.close();

@@ -69,7 +69,12 @@ template <typename MsgT>
 fdds::DataWriter* CreateWriter(fdds::DomainParticipant* participant, fdds::Publisher* publisher,
                                fdds::TypeSupport* type, const std::string& ros_topic,
                                const fdds::DataWriterQos& qos, std::string* error) {
-  type->register_type(participant);
+  // A name already registered with another type support would silently use that one's
+  // (de)serializer on our samples: refuse instead.
+  if (type->register_type(participant) != ReturnCode_t::RETCODE_OK) {
+    *error = "type " + type->get_type_name() + " already registered differently";
+    return nullptr;
+  }
   fdds::Topic* topic = participant->create_topic(RosTopicToDds(ros_topic), type->get_type_name(),
                                                  fdds::TOPIC_QOS_DEFAULT);
   if (!topic) {
@@ -360,7 +365,10 @@ struct PpfNode::Impl {
     const size_t n = static_cast<size_t>(in.width()) * in.height();
     const size_t step = in.point_step();
     if (step == 0 || in.data().size() < n * step) return;
-    sensor_msgs::msg::PointCloud2 out;
+    // The registered cloud goes out through the input's validating type: one type name can only
+    // be registered once per participant, and the reader must keep the validating one.
+    Validated<sensor_msgs::msg::PointCloud2> wrapped;
+    sensor_msgs::msg::PointCloud2& out = wrapped.msg;
     out.header().stamp(bridge::TimeFromSeconds(r.stamp_s));
     out.header().frame_id(config.odom_frame);
     out.height(1);
@@ -396,7 +404,7 @@ struct PpfNode::Impl {
     data.resize(kept * 12);
     out.width(static_cast<uint32_t>(kept));
     out.row_step(static_cast<uint32_t>(kept * 12));
-    registered_writer->write(&out);
+    registered_writer->write(&wrapped);
   }
 
   bool WriteTum(std::string* error) {
@@ -484,7 +492,6 @@ struct PpfNode::Impl {
   fdds::TypeSupport tf_type{new tf2_msgs::msg::TFMessagePubSubType()};
   fdds::TypeSupport path_type{new nav_msgs::msg::PathPubSubType()};
   fdds::TypeSupport planes_type{new ppf_msgs::msg::SkeletonPlaneArrayPubSubType()};
-  fdds::TypeSupport cloud_out_type{new sensor_msgs::msg::PointCloud2PubSubType()};
   fdds::TypeSupport cloud_in_type{new ValidatingPubSubType<sensor_msgs::msg::PointCloud2>()};
   fdds::TypeSupport imu_in_type{new ValidatingPubSubType<sensor_msgs::msg::Imu>()};
   std::unique_ptr<CloudListener> cloud_listener;
@@ -606,14 +613,17 @@ bool PpfNode::init(std::string* error) {
     // Reliable matches both reliable and best-effort readers (RViz either way); depth 2 bounds
     // the memory held for slow readers.
     m.registered_writer = CreateWriter<sensor_msgs::msg::PointCloud2>(
-        m.participant, m.publisher, &m.cloud_out_type, c.registered_points_topic,
+        m.participant, m.publisher, &m.cloud_in_type, c.registered_points_topic,
         DefaultWriterQos(2), error);
     if (!m.registered_writer) return false;
   }
 
   // Readers last: data may flow as soon as they exist.
-  m.cloud_in_type.register_type(m.participant);
-  m.imu_in_type.register_type(m.participant);
+  if (m.cloud_in_type.register_type(m.participant) != ReturnCode_t::RETCODE_OK ||
+      m.imu_in_type.register_type(m.participant) != ReturnCode_t::RETCODE_OK) {
+    *error = "input types already registered differently";
+    return false;
+  }
   fdds::Topic* points_topic = m.participant->create_topic(
       RosTopicToDds(c.points_topic), m.cloud_in_type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
   fdds::Topic* imu_topic = m.participant->create_topic(

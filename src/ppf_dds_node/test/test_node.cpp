@@ -1,0 +1,240 @@
+// ppf_node as a separate process: synthetic driver data in, ROS 2 outputs checked here.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "child_process.hpp"
+#include "dds_test_util.hpp"
+#include "nav_msgs/msg/OdometryPubSubTypes.h"
+#include "nav_msgs/msg/PathPubSubTypes.h"
+#include "ppf_bridge/cdr.hpp"
+#include "ppf_bridge/convert.hpp"
+#include "ppf_dds_node/raw_type.hpp"
+#include "ppf_dds_node/synthetic_scene.hpp"
+#include "ppf_msgs/msg/SkeletonPlaneArrayPubSubTypes.h"
+#include "sensor_msgs/msg/ImuPubSubTypes.h"
+#include "sensor_msgs/msg/PointCloud2PubSubTypes.h"
+#include "tf2_msgs/msg/TFMessagePubSubTypes.h"
+
+using namespace std::chrono_literals;
+using ppf::test::ChildProcess;
+using ppf::test::Collector;
+using ppf::test::SummaryField;
+using ppf::test::TestParticipant;
+using ppf::test::WaitUntil;
+using ppf::test::WriterMatches;
+namespace fdds = eprosima::fastdds::dds;
+
+namespace {
+
+const char* kProfiles = PPF_DDS_CONFIG_DIR "/test_loopback.xml";
+const char* kProfile = "ppf_test_loopback";
+
+std::string TempDir() {
+  char tmpl[] = "/tmp/ppf_node_test_XXXXXX";
+  const char* d = mkdtemp(tmpl);
+  return d ? d : "/tmp";
+}
+
+bool AllFinite(const nav_msgs::msg::Odometry& o) {
+  const auto& p = o.pose().pose();
+  double v[] = {p.position().x(), p.position().y(), p.position().z(), p.orientation().x(),
+                p.orientation().y(), p.orientation().z(), p.orientation().w(),
+                o.twist().twist().linear().x(), o.twist().twist().linear().y(),
+                o.twist().twist().linear().z(), o.twist().twist().angular().x()};
+  for (double x : v) {
+    if (!std::isfinite(x)) return false;
+  }
+  for (double x : o.pose().covariance()) {
+    if (!std::isfinite(x)) return false;
+  }
+  for (double x : o.twist().covariance()) {
+    if (!std::isfinite(x)) return false;
+  }
+  return true;
+}
+
+size_t CountLines(const std::string& file) {
+  std::ifstream in(file);
+  size_t n = 0;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (!line.empty()) ++n;
+  }
+  return n;
+}
+
+}  // namespace
+
+TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput) {
+  const int domain = ppf::test::TestDomainId(11);
+  const std::string dir = TempDir();
+  const std::string tum = dir + "/trajectory.tum";
+  const std::string cfg = dir + "/node.yaml";
+  {
+    std::ofstream out(cfg);
+    out << "dds: {domain_id: " << domain << ", profiles_file: \"" << kProfiles
+        << "\", profile_name: " << kProfile << "}\n"
+        << "frames: {odom_frame: odom_test, base_frame: imu_link}\n"
+        << "outputs: {registered_points: true, path_max_poses: 5}\n"
+        << "queues: {scan_capacity: 100}\n"  // a slow CI machine must not turn into drops here
+        << "trajectory: {tum_file: \"" << tum << "\"}\n"
+        << "diagnostics: {period_s: 1.0}\n";
+  }
+  ChildProcess node;
+  ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", cfg}, {}, dir + "/node.log"));
+  std::string line;
+  ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
+
+  TestParticipant driver(domain, kProfiles, kProfile, "test_driver");
+  ASSERT_TRUE(driver.ok()) << driver.error;
+  WriterMatches cloud_m, imu_m, bad_m;
+  // Driver QoS: best effort, as most LiDAR/IMU drivers publish.
+  auto* cloud_w = driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
+                                ppf::dds::SensorWriterQos(ppf::dds::Reliability::kBestEffort, 20),
+                                &cloud_m);
+  auto* imu_w = driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
+                              ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 500),
+                              &imu_m);
+  Collector<nav_msgs::msg::Odometry> odom;
+  Collector<tf2_msgs::msg::TFMessage> tf;
+  Collector<nav_msgs::msg::Path> path;
+  Collector<ppf_msgs::msg::SkeletonPlaneArray> planes;
+  Collector<sensor_msgs::msg::PointCloud2> registered;
+  ASSERT_NE(driver.Reader(new nav_msgs::msg::OdometryPubSubType(), "rt/odometry",
+                          ppf::dds::KeepAllReaderQos(), &odom), nullptr);
+  ASSERT_NE(driver.Reader(new tf2_msgs::msg::TFMessagePubSubType(), "rt/tf",
+                          ppf::dds::KeepAllReaderQos(), &tf), nullptr);
+  ASSERT_NE(driver.Reader(new nav_msgs::msg::PathPubSubType(), "rt/path",
+                          ppf::dds::DefaultReaderQos(10), &path), nullptr);
+  ASSERT_NE(driver.Reader(new ppf_msgs::msg::SkeletonPlaneArrayPubSubType(),
+                          "rt/skeleton_planes", ppf::dds::KeepAllReaderQos(), &planes), nullptr);
+  ASSERT_NE(driver.Reader(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/registered_points",
+                          ppf::dds::KeepAllReaderQos(), &registered), nullptr);
+  // Malformed payloads come from a second participant: same topic and type name, raw bytes.
+  TestParticipant rogue(domain, kProfiles, kProfile, "test_rogue");
+  auto* bad_w = rogue.Writer(new ppf::dds::RawPubSubType("sensor_msgs::msg::dds_::PointCloud2_"),
+                             "rt/points", ppf::dds::KeepAllWriterQos(), &bad_m);
+  ASSERT_TRUE(cloud_w && imu_w && bad_w);
+  ASSERT_TRUE(WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 &&
+                                     bad_m.matched > 0 && odom.matched > 0; }, 20s));
+
+  // VLP-16-sized static room: 1.5 s of resting IMU for initialization, then 20 scans at 10 Hz.
+  ppf::dds::SyntheticLidar lidar;
+  lidar.rings = 16;
+  lidar.columns = 1024;
+  lidar.min_elevation_deg = -15;
+  lidar.max_elevation_deg = 15;
+  sensor_msgs::msg::PointCloud2 cloud = ppf::dds::MakeRoomScan(lidar, 0);
+  const int64_t t0 = 1700000000LL * 1000000000LL;
+  const int kScans = 20;
+  const auto wall0 = std::chrono::steady_clock::now();
+  int64_t imu_t = t0;
+  uint64_t seq = 0;
+  for (int s = 0; s <= kScans; ++s) {
+    const int64_t scan_end = t0 + 1500000000LL + s * 100000000LL;
+    while (imu_t <= scan_end) {
+      sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(imu_t, seq++);
+      ASSERT_TRUE(imu_w->write(&imu));
+      imu_t += 5000000;
+    }
+    std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(scan_end - t0));
+    if (s == 0) continue;
+    cloud.header().stamp(ppf::bridge::TimeFromNanoseconds(scan_end - 100000000LL));
+    ASSERT_TRUE(cloud_w->write(&cloud));
+  }
+  // Malformed input: garbage, a truncated real payload, an unknown field datatype.
+  ppf::dds::RawMessage bad;
+  bad.payload = {0x00, 0x01, 0x00, 0x00, 0xff, 0xff, 0xff, 0x7f, 0x01};
+  ASSERT_TRUE(bad_w->write(&bad));
+  bad.payload = ppf::bridge::EncodeCdr(cloud);
+  bad.payload.resize(bad.payload.size() / 2);
+  ASSERT_TRUE(bad_w->write(&bad));
+  sensor_msgs::msg::PointCloud2 weird = cloud;
+  weird.fields()[0].datatype(42);
+  bad.payload = ppf::bridge::EncodeCdr(weird);
+  ASSERT_TRUE(bad_w->write(&bad));
+  // A NaN IMU sample is rejected by the listener, not fed to the filter.
+  sensor_msgs::msg::Imu nan_imu = ppf::dds::MakeRestingImu(imu_t, seq++);
+  nan_imu.linear_acceleration().x(std::nan(""));
+  ASSERT_TRUE(imu_w->write(&nan_imu));
+  bad_w->wait_for_acknowledgments({5, 0});
+
+  // After initialization every scan gives a pose; allow a slow machine 20 s to catch up.
+  WaitUntil([&] { return odom.Count() >= static_cast<size_t>(kScans) - 2; }, 20s);
+  std::this_thread::sleep_for(500ms);
+  node.Signal(SIGINT);
+  std::vector<std::string> seen;
+  ASSERT_TRUE(node.WaitForLine("PPF_NODE_SUMMARY", &line, 30s, &seen));
+  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 0));
+  std::printf("%s\n", line.c_str());
+
+  EXPECT_EQ(SummaryField(line, "scans_malformed"), 3.0);
+  EXPECT_EQ(SummaryField(line, "imu_malformed"), 1.0);
+  EXPECT_EQ(SummaryField(line, "scans_received"), kScans + 3.0);
+  EXPECT_EQ(SummaryField(line, "scans_processed"), kScans);
+  EXPECT_EQ(SummaryField(line, "scans_dropped"), 0.0);
+  EXPECT_EQ(SummaryField(line, "resets"), 0.0);
+  const double published = SummaryField(line, "odometry_published");
+  // Initialization needs 1 s of rest: it is complete before the first scan ends.
+  EXPECT_GE(published, kScans - 2.0);
+
+  const auto odoms = odom.Samples();
+  ASSERT_EQ(static_cast<double>(odoms.size()), published);
+  double prev = -1;
+  for (const auto& o : odoms) {
+    EXPECT_EQ(o.header().frame_id(), "odom_test");
+    EXPECT_EQ(o.child_frame_id(), "imu_link");
+    EXPECT_TRUE(AllFinite(o));
+    const double t = ppf::bridge::ToSeconds(o.header().stamp());
+    EXPECT_GT(t, prev);
+    prev = t;
+    // Static sensor in a static room: the pose must stay put.
+    const auto& p = o.pose().pose().position();
+    EXPECT_LT(std::sqrt(p.x() * p.x() + p.y() * p.y() + p.z() * p.z()), 0.1);
+    EXPECT_GT(o.pose().covariance()[0], 0.0);
+  }
+  const auto tfs = tf.Samples();
+  ASSERT_EQ(tfs.size(), odoms.size());
+  ASSERT_EQ(tfs.back().transforms().size(), 1u);
+  EXPECT_EQ(tfs.back().transforms()[0].header().frame_id(), "odom_test");
+  EXPECT_EQ(tfs.back().transforms()[0].child_frame_id(), "imu_link");
+  EXPECT_EQ(tfs.back().transforms()[0].header().stamp(), odoms.back().header().stamp());
+  const auto paths = path.Samples();
+  ASSERT_FALSE(paths.empty());
+  EXPECT_EQ(paths.back().poses().size(), 5u);  // bounded by path_max_poses
+  EXPECT_EQ(paths.back().header().frame_id(), "odom_test");
+  EXPECT_EQ(paths.back().poses().back().header().stamp(), odoms.back().header().stamp());
+  const auto plane_msgs = planes.Samples();
+  EXPECT_EQ(plane_msgs.size(), odoms.size());
+  if (!plane_msgs.empty()) {
+    EXPECT_EQ(plane_msgs.back().header().frame_id(), "odom_test");
+  }
+  const auto reg = registered.Samples();
+  ASSERT_EQ(reg.size(), odoms.size());
+  EXPECT_EQ(reg.back().header().frame_id(), "odom_test");
+  EXPECT_EQ(reg.back().width(), cloud.width());  // every synthetic return is finite
+  // TUM trajectory flushed on SIGINT: one line per odometry message.
+  EXPECT_EQ(static_cast<double>(CountLines(tum)), published);
+}
+
+TEST(NodeProcess, BadConfigFailsFastWithExitCode) {
+  const std::string dir = TempDir();
+  const std::string cfg = dir + "/bad.yaml";
+  {
+    std::ofstream out(cfg);
+    out << "qos: {sensor_reliability: sometimes}\n";
+  }
+  ChildProcess node;
+  ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", cfg}, {}, dir + "/node.log"));
+  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(15s), 2));
+  ChildProcess missing;
+  ASSERT_TRUE(missing.Start({PPF_NODE_EXE, "--config", dir + "/nope.yaml"}, {}, dir + "/m.log"));
+  EXPECT_TRUE(ppf::test::ExitedWith(missing.Wait(15s), 2));
+}

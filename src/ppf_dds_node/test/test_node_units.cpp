@@ -1,0 +1,112 @@
+// In-process units of the node: config parsing and the hand-over queue.
+#include <gtest/gtest.h>
+
+#include "ppf_dds_node/latency_stats.hpp"
+#include "ppf_dds_node/node_config.hpp"
+#include "ppf_dds_node/time_ordered_queue.hpp"
+
+namespace ppf::dds {
+namespace {
+
+TEST(NodeConfig, EmptyYamlGivesDocumentedDefaults) {
+  NodeConfig c;
+  const auto r = LoadNodeConfigString("", &c);
+  ASSERT_TRUE(r.ok);
+  EXPECT_TRUE(r.warnings.empty());
+  EXPECT_EQ(c.points_topic, "/points");
+  EXPECT_EQ(c.imu_topic, "/imu");
+  EXPECT_EQ(c.odometry_topic, "/odometry");
+  EXPECT_EQ(c.odom_frame, "odom");
+  EXPECT_EQ(c.base_frame, "base_link");
+  EXPECT_EQ(c.sensor_reliability, Reliability::kBestEffort);
+  EXPECT_FALSE(c.publish_registered_points);
+  EXPECT_TRUE(c.publish_tf);
+  EXPECT_EQ(c.participant.domain_id, 0);
+}
+
+TEST(NodeConfig, PartialSectionsKeepOtherDefaults) {
+  NodeConfig c;
+  const auto r = LoadNodeConfigString(
+      "dds: {domain_id: 7}\ntopics: {points: /velodyne_points}\nqos: {sensor_reliability: "
+      "reliable}\nframes: {odom_frame: map}\n",
+      &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(c.participant.domain_id, 7);
+  EXPECT_EQ(c.points_topic, "/velodyne_points");
+  EXPECT_EQ(c.imu_topic, "/imu");
+  EXPECT_EQ(c.sensor_reliability, Reliability::kReliable);
+  EXPECT_EQ(c.odom_frame, "map");
+  EXPECT_EQ(c.base_frame, "base_link");
+}
+
+TEST(NodeConfig, WrongTypesAndValuesAreErrorsNamingTheKey) {
+  NodeConfig c;
+  auto r = LoadNodeConfigString("dds: {domain_id: [1, 2]}\n", &c);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("dds.domain_id"), std::string::npos) << r.error;
+  r = LoadNodeConfigString("qos: {sensor_reliability: maybe}\n", &c);
+  EXPECT_FALSE(r.ok);
+  r = LoadNodeConfigString("dds: {domain_id: 400}\n", &c);
+  EXPECT_FALSE(r.ok);
+  r = LoadNodeConfigString("topics: [a, b]\n", &c);
+  EXPECT_FALSE(r.ok);
+  r = LoadNodeConfigString("{{{", &c);
+  EXPECT_FALSE(r.ok);
+}
+
+TEST(NodeConfig, UnknownKeysWarnAndNonsenseIsClamped) {
+  NodeConfig c;
+  const auto r =
+      LoadNodeConfigString("topic: {points: /x}\nqueues: {scan_capacity: 0, imu_capcity: 5}\n", &c);
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(r.warnings.size(), 3u);  // 'topic', 'queues.imu_capcity', scan_capacity raised
+  EXPECT_EQ(c.scan_queue_capacity, 1);
+  EXPECT_EQ(c.points_topic, "/points");
+}
+
+TEST(NodeConfig, ShippedPresetsLoadWithoutWarnings) {
+  for (const char* f : {"node.yaml", "node_hdl64.yaml", "node_vlp16.yaml", "node_hdl32.yaml",
+                        "node_container.yaml"}) {
+    NodeConfig c;
+    const auto r = LoadNodeConfig(std::string(PPF_CONFIG_DIR) + "/" + f, &c);
+    EXPECT_TRUE(r.ok) << f << ": " << r.error;
+    EXPECT_TRUE(r.warnings.empty()) << f << ": " << r.warnings.front();
+    // Relative paths resolve next to the config file.
+    EXPECT_EQ(c.participant.profiles_file.rfind(PPF_CONFIG_DIR, 0), 0u) << f;
+  }
+}
+
+TEST(TimeOrderedQueue, KeepsTimeOrderAndEvictsOldestWhenFull) {
+  TimeOrderedQueue<int> q(3);
+  EXPECT_FALSE(q.Push(1.0, 1).evicted);
+  EXPECT_FALSE(q.Push(3.0, 3).evicted);
+  const auto late = q.Push(2.0, 2);  // arrives late: sorted in, flagged
+  EXPECT_TRUE(late.out_of_order);
+  EXPECT_FALSE(late.evicted);
+  const auto full = q.Push(4.0, 4);
+  ASSERT_TRUE(full.evicted);
+  EXPECT_EQ(*full.evicted, 1);  // oldest goes first
+  std::deque<std::pair<double, int>> out;
+  EXPECT_EQ(q.PopAll(&out), 3u);
+  ASSERT_EQ(out.size(), 3u);
+  EXPECT_EQ(out[0].second, 2);
+  EXPECT_EQ(out[1].second, 3);
+  EXPECT_EQ(out[2].second, 4);
+  EXPECT_EQ(q.Size(), 0u);
+  EXPECT_FALSE(q.PopFront());
+}
+
+TEST(LatencyStats, NearestRankPercentiles) {
+  LatencyStats s;
+  EXPECT_TRUE(std::isnan(s.Percentile(50)));
+  for (int i = 1; i <= 100; ++i) s.Add(i);
+  s.Add(std::nan(""));  // ignored
+  EXPECT_EQ(s.count(), 100u);
+  EXPECT_DOUBLE_EQ(s.Percentile(50), 50);
+  EXPECT_DOUBLE_EQ(s.Percentile(99), 99);
+  EXPECT_DOUBLE_EQ(s.Percentile(100), 100);
+  EXPECT_DOUBLE_EQ(s.Max(), 100);
+}
+
+}  // namespace
+}  // namespace ppf::dds

@@ -8,6 +8,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "ppf_core/ppf_config.hpp"
 #include "ppf_core/so3.hpp"
 
 namespace ppf {
@@ -255,8 +256,13 @@ void Apply(const YAML::Node& root, Config* c, ConfigLoadReport* report) {
       {"iekf", [&](const YAML::Node& n, const std::string& k) { ApplyTable(n, k, iekf, report); }},
       {"knn", [&](const YAML::Node& n, const std::string& k) { ApplyTable(n, k, knn, report); }},
       {"num_threads", Int(&c->num_threads)},
-      // Plane pre-fitting parameters are read by the PPF config loader, not here.
-      {"ppf", [](const YAML::Node&, const std::string&) {}},
+      // Plane pre-fitting parameters are read by the PPF config loader (ppf_config.hpp).
+      {"ppf",
+       [c, report](const YAML::Node& n, const std::string&) {
+         const PpfConfigLoadReport r = LoadPpfConfig(n, &c->ppf);
+         for (const std::string& w : r.warnings) report->warnings.push_back(w);
+         if (!r.ok) throw TypeError(r.error);
+       }},
   };
   ApplyTable(root, "", top, report);
 }

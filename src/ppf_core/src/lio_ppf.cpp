@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "ppf_core/deskew.hpp"
+#include "ppf_core/skeleton_tracker.hpp"
 #include "ppf_core/so3.hpp"
 
 namespace ppf {
@@ -82,6 +83,7 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(c->knn.max_neighbor_distance > 0.0), "knn.max_neighbor_distance",
       &c->knn.max_neighbor_distance, 1.0);
   fix(!(c->knn.max_residual > 0.0), "knn.max_residual", &c->knn.max_residual, 0.5);
+  for (const std::string& note : ValidatePpfConfig(&c->ppf)) notes.push_back(note);  // PPF
   const Eigen::Matrix3d R = c->T_imu_lidar.linear();
   if (!c->T_imu_lidar.matrix().allFinite() ||
       (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-3 || R.determinant() < 0) {
@@ -114,6 +116,14 @@ struct LioPpf::Impl {
     init = ImuInitializer(config.init);
     map = VoxelMap(config.map);
     knn = std::make_shared<KnnResidualProvider>(config.knn);
+    // PPF: the paper's plane pre-fitting + skeleton tracking is the default kPpf splitter.
+    if (config.mode == Mode::kPpf) {
+      if (config.num_threads > 0 && config.ppf.num_threads == 0) {
+        config.ppf.num_threads = config.num_threads;
+      }
+      ppf_tracker = std::make_shared<SkeletonTracker>(config.ppf);
+      splitter = ppf_tracker;
+    }
   }
 
   void Log(LogLevel level, const std::string& msg) const {
@@ -358,6 +368,10 @@ struct LioPpf::Impl {
     std::vector<ResidualProvider*> providers;
     providers.push_back(knn.get());
     if (config.mode == Mode::kPpf) {
+      // PPF: the built-in tracker's skeleton residuals, only while it is the installed splitter.
+      if (ppf_tracker && splitter == ppf_tracker) {
+        providers.push_back(ppf_tracker->residual_provider().get());
+      }
       for (auto& p : extra) providers.push_back(p.get());
     }
     for (ResidualProvider* p : providers) p->BeginScan(frame);
@@ -376,6 +390,7 @@ struct LioPpf::Impl {
     if (config.mode == Mode::kPpf && splitter) {
       t0 = Clock::now();
       splitter->Finish(frame, T_world_lidar);
+      if (ppf_tracker && splitter == ppf_tracker) r.skeleton_planes = ppf_tracker->window().planes();
       r.timings.ppf += MsSince(t0);
     }
     for (ResidualProvider* p : providers) p->EndScan(T_world_lidar);
@@ -423,6 +438,7 @@ struct LioPpf::Impl {
   VoxelMap map;
   std::shared_ptr<KnnResidualProvider> knn;
   std::shared_ptr<ScanSplitter> splitter;
+  std::shared_ptr<SkeletonTracker> ppf_tracker;  // PPF: built-in kPpf splitter (may be replaced)
   std::vector<std::shared_ptr<ResidualProvider>> extra;
   std::deque<ImuSample> imu;
   std::deque<QueuedScan> scans;

@@ -215,6 +215,7 @@ TEST(LioPpf, PpfModeWithoutSplitterSaysSo) {
   Config config;
   config.mode = Mode::kPpf;
   LioPpf lio(config);
+  lio.SetScanSplitter(nullptr);  // PPF: kPpf installs the skeleton tracker by default
   FeedStill(&lio, 0.0, 1.3);
   const test::CloudBuffer s1 = StillScan(1.0);
   const ScanResult r = lio.ProcessScan(s1.view);

@@ -22,6 +22,10 @@
 // SetScanSplitter() and its skeleton residuals with AddResidualProvider(). The built-in kNN provider
 // always handles the kScattered points. If kPpf is configured but no splitter is installed the
 // facade runs as kKnn and says so in ScanResult::reason.
+// PPF default: with Mode::kPpf the facade installs the paper's skeleton tracker
+// (skeleton_tracker.hpp, parameters Config::ppf) and its skeleton residual provider.
+// SetScanSplitter() replaces both (a custom splitter brings its own providers);
+// SetScanSplitter(nullptr) runs kNN only.
 //
 // Initialization (imu_init.hpp): needs Config::init.duration_s (1 s) of static IMU data; scans
 // before that return Status::kInitializing. Motion during that window restarts the collection.
@@ -48,7 +52,9 @@
 #include "ppf_core/imu_sample.hpp"
 #include "ppf_core/knn_residual.hpp"
 #include "ppf_core/log.hpp"
+#include "ppf_core/ppf_config.hpp"
 #include "ppf_core/residual_provider.hpp"
+#include "ppf_core/skeleton_window.hpp"
 #include "ppf_core/time_field.hpp"
 #include "ppf_core/voxel_map.hpp"
 
@@ -91,6 +97,9 @@ struct Config {
   // --- registration ----------------------------------------------------------------------------
   IekfOptions iekf;  // max 4 iterations, degeneracy thresholds (iekf.hpp)
   KnnOptions knn;    // 5 neighbours, planes valid within 0.1 m (knn_residual.hpp)
+  // Plane pre-fitting and skeleton tracking (Mode::kPpf), YAML section `ppf:`; every field and
+  // default is documented in ppf_config.hpp (PpfConfigForBeams() for 16/32/64/128 beams).
+  PpfConfig ppf;
 
   int num_threads = 0;  // OpenMP threads for de-skew and kNN residuals (0 = OpenMP default)
   LogCallback log;      // receives all messages; nullptr = silent
@@ -132,6 +141,9 @@ struct ScanResult {
   size_t discarded_points = 0;    // labelled kDiscarded
   size_t knn_residuals = 0;       // rows of the kNN provider (last iteration)
   size_t skeleton_residuals = 0;  // rows of other providers (last iteration)
+  // kPpf with the built-in tracker: the world-frame skeleton-plane window after this scan. Track
+  // ids are stable for the same physical plane across scans (ppf_msgs/SkeletonPlaneArray).
+  std::vector<SkeletonPlane> skeleton_planes;
   size_t map_inserted = 0;        // points offered to the map
 
   int iterations = 0;

@@ -49,6 +49,7 @@ struct ScanItem {
   std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;
   Clock::time_point received;  // listener entry, before the sample is taken and decoded
   Clock::time_point queued;    // pushed into the scan queue
+  int64_t core_busy_ns_at_queue = 0;  // Impl::core_busy_ns when queued
 };
 
 struct ImuItem {
@@ -61,6 +62,7 @@ struct PendingScan {
   Clock::time_point added;  // AddScan returned
   double decode_ms = 0.0;   // listener: take + CDR decode + checks
   double queue_ms = 0.0;    // waiting in the scan queue for the executor
+  double behind_core_ms = 0.0;  // part of queue_ms during which the executor ran the core
   double add_scan_ms = 0.0;
   std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;  // kept only for /registered_points
 };
@@ -161,7 +163,8 @@ struct PpfNode::Impl {
       }
       const double stamp = bridge::ToSeconds(sample.msg.header().stamp());
       auto msg = std::make_shared<sensor_msgs::msg::PointCloud2>(std::move(sample.msg));
-      auto pushed = scan_queue.Push(stamp, ScanItem{std::move(msg), received, Clock::now()});
+      auto pushed = scan_queue.Push(
+          stamp, ScanItem{std::move(msg), received, Clock::now(), core_busy_ns.load()});
       if (pushed.evicted) {
         {
           std::lock_guard<std::mutex> lock(stats_mutex);
@@ -259,8 +262,14 @@ struct PpfNode::Impl {
     p.received = item.received;
     p.decode_ms = MsBetween(item.received, item.queued);
     p.queue_ms = MsBetween(item.queued, t0);
+    // Core time completed while this scan waited (a call already running when it was queued
+    // counts whole, hence the min).
+    p.behind_core_ms =
+        std::min(p.queue_ms, 1e-6 * static_cast<double>(core_busy_ns.load() -
+                                                        item.core_busy_ns_at_queue));
     p.added = Clock::now();
     p.add_scan_ms = MsBetween(t0, p.added);
+    core_busy_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(p.added - t0).count();
     if (config.publish_registered_points) p.msg = std::move(item.msg);
     pending.push_back(std::move(p));
   }
@@ -268,7 +277,9 @@ struct PpfNode::Impl {
   void RunCore(bool flush) {
     const Clock::time_point t0 = Clock::now();
     std::vector<ScanResult> results = core->Process(flush);
-    const double process_ms = MsBetween(t0, Clock::now());
+    const Clock::time_point t1 = Clock::now();
+    const double process_ms = MsBetween(t0, t1);
+    core_busy_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count();
     // Core time of a result: its AddScan plus its share of the Process call (by the core's own
     // per-scan timings when one call returns several scans).
     double total = 0.0;
@@ -346,9 +357,11 @@ struct PpfNode::Impl {
     imu_wait_stats.Add(imu_wait_ms);
     decode_stats.Add(p.decode_ms);
     queue_stats.Add(p.queue_ms);
-    // Node overhead: everything between DDS receive and publish that is not the core working or
-    // the scan waiting for the IMU that covers its end (a property of the input, reported apart).
-    overhead_ms.Add(latency - core_ms - imu_wait_ms);
+    behind_core_stats.Add(p.behind_core_ms);
+    // Node overhead: everything between DDS receive and publish that is not the core working on
+    // this scan, waiting for the core to finish earlier scans, or waiting for the IMU that covers
+    // the scan end (the last two are reported apart).
+    overhead_ms.Add(latency - core_ms - imu_wait_ms - p.behind_core_ms);
   }
 
   // Input points moved to the odom frame with the scan-end pose (not de-skewed: the core keeps
@@ -446,6 +459,8 @@ struct PpfNode::Impl {
     s.decode_p99_ms = decode_stats.Percentile(99);
     s.queue_p50_ms = queue_stats.Percentile(50);
     s.queue_p99_ms = queue_stats.Percentile(99);
+    s.behind_core_p50_ms = behind_core_stats.Percentile(50);
+    s.behind_core_p99_ms = behind_core_stats.Percentile(99);
     return s;
   }
 
@@ -517,7 +532,9 @@ struct PpfNode::Impl {
 
   mutable std::mutex stats_mutex;
   NodeSummary summary;
-  LatencyStats latency_ms, core_time_ms, overhead_ms, imu_wait_stats, decode_stats, queue_stats;
+  LatencyStats latency_ms, core_time_ms, overhead_ms, imu_wait_stats, decode_stats, queue_stats,
+      behind_core_stats;
+  std::atomic<int64_t> core_busy_ns{0};  // total executor time inside the core
   bool torn_down = false;
 
   void TearDown() {
@@ -719,6 +736,8 @@ std::string PpfNode::FormatSummary(const NodeSummary& s) {
     << " imu_wait_p50_ms=" << s.imu_wait_p50_ms << " imu_wait_p99_ms=" << s.imu_wait_p99_ms
     << " decode_p50_ms=" << s.decode_p50_ms << " decode_p99_ms=" << s.decode_p99_ms
     << " queue_p50_ms=" << s.queue_p50_ms << " queue_p99_ms=" << s.queue_p99_ms
+    << " behind_core_p50_ms=" << s.behind_core_p50_ms
+    << " behind_core_p99_ms=" << s.behind_core_p99_ms
     << " last_status=" << (s.last_status.empty() ? "none" : s.last_status);
   return o.str();
 }

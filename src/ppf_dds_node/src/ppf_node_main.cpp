@@ -92,7 +92,7 @@ int main(int argc, char** argv) {
                "  imu        received %llu  malformed %llu  overflow %llu\n"
                "  latency    p50 %.2f ms  p99 %.2f ms  (DDS receive -> odometry published)\n"
                "  core       p50 %.2f ms  p99 %.2f ms\n"
-               "  overhead   p50 %.2f ms  p99 %.2f ms  (latency - core)\n",
+               "  overhead   p50 %.2f ms  p99 %.2f ms  (latency - core - waits for IMU / busy core)\n",
                (unsigned long long)s.scans_received, (unsigned long long)s.scans_processed,
                (unsigned long long)s.odometry_published, (unsigned long long)s.scans_dropped,
                (unsigned long long)s.scans_malformed, (unsigned long long)s.scans_rejected,

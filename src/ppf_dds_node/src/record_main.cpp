@@ -304,7 +304,9 @@ int main(int argc, char** argv) {
     Log(Level::kError, error);
     return 1;
   }
-  participant->set_listener(&recorder);
+  // Mask none: discovery callbacks still arrive, but data events stay with the readers' own
+  // listeners (a participant listener with DATA_ON_READERS enabled would swallow them).
+  participant->set_listener(&recorder, fdds::StatusMask::none());
   fdds::Subscriber* subscriber = participant->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
   recorder.Attach(participant, subscriber);
   participant->enable();

@@ -35,11 +35,13 @@ struct NodeSummary {
   uint64_t imu_out_of_order = 0;
   double latency_p50_ms = 0, latency_p99_ms = 0, latency_max_ms = 0;
   double core_p50_ms = 0, core_p99_ms = 0;
-  // overhead = latency - core - imu_wait: the node's own cost (decode, queues, publishing).
+  // overhead = latency - core - imu_wait - behind_core: the node's own cost (decode, hand-over,
+  // publishing).
   double overhead_p50_ms = 0, overhead_p99_ms = 0, overhead_max_ms = 0;
   double imu_wait_p50_ms = 0, imu_wait_p99_ms = 0;  // scan waited in the core for IMU coverage
   double decode_p50_ms = 0, decode_p99_ms = 0;      // listener: take + CDR decode + checks
   double queue_p50_ms = 0, queue_p99_ms = 0;        // scan queue -> executor
+  double behind_core_p50_ms = 0, behind_core_p99_ms = 0;  // of queue: core busy with older scans
   std::string last_status;
 };
 

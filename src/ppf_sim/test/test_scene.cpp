@@ -133,5 +133,26 @@ TEST(Scenes, AllBuildAndTheSensorStartsInFreeSpace) {
   EXPECT_THROW(BuildWorld(WorldOptions{"mars"}), std::invalid_argument);
 }
 
+// The hand-held walk covers the whole indoor loop (rooms, doors, corridor) in ~150 s: it must
+// keep clear of walls and furniture everywhere, including the shake.
+TEST(Scenes, IndoorWalkNeverTouchesWalls) {
+  WorldOptions o;
+  o.scene = "indoor";
+  o.duration = 160;
+  const World w = BuildWorld(o);
+  double min_clear = 1e9;
+  for (double t = 0; t < 160; t += 0.1) {
+    const Eigen::Vector3d p = w.trajectory.Evaluate(t).p;
+    for (int k = 0; k < 32; ++k) {
+      const double az = k * M_PI / 16;
+      Hit h;
+      Ray r = MakeRay(p, {std::cos(az), std::sin(az), 0.0});
+      if (w.scene.Intersect(r, &h)) min_clear = std::min(min_clear, h.t);
+    }
+  }
+  EXPECT_GT(min_clear, 0.35);
+  EXPECT_GT(w.trajectory.Evaluate(100).p.x(), 30.0);  // it did walk down the corridor
+}
+
 }  // namespace
 }  // namespace ppf::sim

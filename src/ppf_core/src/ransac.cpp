@@ -19,12 +19,29 @@ struct Hypothesis {
   float d;
 };
 
-int CountInliersSerial(const std::vector<Eigen::Vector3f>& points, const Hypothesis& h,
-                       float delta) {
-  int count = 0;
+// Structure-of-arrays copy of the points: the scoring loop below then vectorises (4-8 points per
+// instruction); with Vector3f's 12-byte stride it does not.
+struct SoaPoints {
+  std::vector<float> x, y, z;
+  explicit SoaPoints(const std::vector<Eigen::Vector3f>& pts)
+      : x(pts.size()), y(pts.size()), z(pts.size()) {
+    for (size_t i = 0; i < pts.size(); ++i) {
+      x[i] = pts[i].x();
+      y[i] = pts[i].y();
+      z[i] = pts[i].z();
+    }
+  }
+};
+
+int CountInliersSoa(const SoaPoints& p, const Hypothesis& h, float delta) {
   const float nx = h.n.x(), ny = h.n.y(), nz = h.n.z(), d = h.d;
-  for (const auto& p : points) {
-    const float dist = nx * p.x() + ny * p.y() + nz * p.z() + d;
+  const float* x = p.x.data();
+  const float* y = p.y.data();
+  const float* z = p.z.data();
+  const size_t n = p.x.size();
+  int count = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const float dist = nx * x[i] + ny * y[i] + nz * z[i] + d;
     count += (std::abs(dist) < delta) ? 1 : 0;
   }
   return count;
@@ -68,9 +85,10 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
   const int max_degenerate = std::max(1, params.max_degenerate_samples);
   const float delta = static_cast<float>(params.delta);
 
+  const SoaPoints soa(points);
   int needed = max_iterations;
   int best_count = -1;
-  Hypothesis best{};
+  Hypothesis best{Eigen::Vector3f::UnitZ(), 0.0f};
   Hypothesis batch[kBatch];
   int batch_count[kBatch];
 
@@ -98,7 +116,7 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
     if (filled == 0) break;
 
 #pragma omp parallel for schedule(static) if (static_cast <long>(n) * filled > kParallelWork)
-    for (int b = 0; b < filled; ++b) batch_count[b] = CountInliersSerial(points, batch[b], delta);
+    for (int b = 0; b < filled; ++b) batch_count[b] = CountInliersSoa(soa, batch[b], delta);
 
     for (int b = 0; b < filled; ++b) {
       ++result.iterations;

@@ -20,6 +20,7 @@ plus DIR/groundtruth.tum, DIR/calibration.yaml and DIR/imu_bias.csv.
 Time conventions
   PointCloud2 header.stamp = scan START time (time of the first firing). Per-point time is
   relative to that stamp: velodyne models `time` float32 seconds, ouster models `t` uint32 ns.
+  (--stamp end / --time-field change this on purpose, for testing the core's detection.)
   The bag (receive) time of a cloud is the scan END (when a driver publishes it); IMU bag time
   = its stamp. The sensor pose is evaluated at each firing time (motion distortion is real).
   Sim time 0 = --start-time; the platform is static for --static seconds at the start.
@@ -55,6 +56,11 @@ Options
   --extrinsic X,Y,Z,R,P,Y   T_imu_lidar: translation (m) and roll,pitch,yaw (deg, R = Rz Ry Rx)
                         [0.2,0.05,0.15,1.0,-1.5,2.0]
   --start-time S        absolute time of sim time 0, seconds since the epoch      [1700000000]
+  --time-field T        velodyne models only, other drivers' conventions for testing time
+                        detection: driver (`time` f32 s) | none (no per-point time) |
+                        abs_f64 (`timestamp` f64 absolute seconds, Hesai-style)    [driver]
+  --stamp S             velodyne models only: start | end. `end` puts header.stamp at the
+                        scan end (ROS 1 velodyne style; relative times negative)   [start]
   --lidar-frame F       PointCloud2 frame_id                                       [lidar]
   --imu-frame F         Imu frame_id                                               [imu]
   --points-topic T      [/points]      --imu-topic T   [/imu]
@@ -73,7 +79,7 @@ int main(int argc, char** argv) {
          "static", "max-rate", "range-noise", "dropout", "max-range", "imu-rate", "gyro-noise",
          "accel-noise", "gyro-bias-rw", "accel-bias-rw", "gyro-bias-init", "accel-bias-init",
          "gravity", "extrinsic", "start-time", "lidar-frame", "imu-frame", "points-topic",
-         "imu-topic", "threads"},
+         "imu-topic", "threads", "time-field", "stamp"},
         {"help", "no-imu-noise"});
     if (args.Has("help")) {
       std::fputs(kHelp, stdout);
@@ -129,6 +135,16 @@ int main(int argc, char** argv) {
     cfg.scan.T_imu_lidar.linear() =
         EulerToRotation(Eigen::Vector3d(ex[3], ex[4], ex[5]) * M_PI / 180.0);
     cfg.start_ns = static_cast<int64_t>(std::llround(args.Num("start-time", 1700000000.0) * 1e9));
+    const std::string tf = args.Str("time-field", "driver"), st = args.Str("stamp", "start");
+    if (tf != "driver" && tf != "none" && tf != "abs_f64")
+      throw std::invalid_argument("--time-field: driver | none | abs_f64");
+    if (st != "start" && st != "end") throw std::invalid_argument("--stamp: start | end");
+    if ((tf != "driver" || st != "start") && GetLidarModel(cfg.lidar).layout != PointLayout::kVelodyne)
+      throw std::invalid_argument("--time-field/--stamp apply to velodyne models only");
+    cfg.scan.time_field = tf == "none"      ? ScanOptions::TimeField::kNone
+                          : tf == "abs_f64" ? ScanOptions::TimeField::kAbsoluteF64
+                                            : ScanOptions::TimeField::kDriverDefault;
+    cfg.scan.stamp_at_end = st == "end";
     cfg.scan.frame_id = args.Str("lidar-frame", "lidar");
     cfg.imu_frame = args.Str("imu-frame", "imu");
     cfg.bag.points_topic = args.Str("points-topic", "/points");

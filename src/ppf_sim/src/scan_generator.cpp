@@ -101,9 +101,15 @@ CloudBuffer ScanGenerator::Generate(int k) const {
   cloud.stamp_ns = opt_.start_ns + static_cast<int64_t>(std::llround(t_scan * 1e9));
   cloud.frame_id = opt_.frame_id;
   if (model_.layout == PointLayout::kVelodyne) {
+    using TF = ScanOptions::TimeField;
     cloud.fields = {{"x", 0, kFloat32, 1},         {"y", 4, kFloat32, 1},
                     {"z", 8, kFloat32, 1},         {"intensity", 16, kFloat32, 1},
-                    {"ring", 20, kUint16, 1},      {"time", 24, kFloat32, 1}};
+                    {"ring", 20, kUint16, 1}};
+    if (opt_.time_field == TF::kDriverDefault) cloud.fields.push_back({"time", 24, kFloat32, 1});
+    if (opt_.time_field == TF::kAbsoluteF64) cloud.fields.push_back({"timestamp", 24, kFloat64, 1});
+    const int64_t start_ns = cloud.stamp_ns;
+    const double time_offset = opt_.stamp_at_end ? -period : 0.0;
+    if (opt_.stamp_at_end) cloud.stamp_ns += static_cast<int64_t>(std::llround(period * 1e9));
     cloud.point_step = 32;
     size_t valid = 0;
     for (const Sample& s : samples) valid += s.range > 0.0f;
@@ -114,7 +120,11 @@ CloudBuffer ScanGenerator::Generate(int k) const {
     cloud.data.assign(static_cast<size_t>(cloud.row_step), 0);
     uint8_t* dst = cloud.data.data();
     for (int c = 0; c < nc; ++c) {
-      const float t_rel = static_cast<float>(c * period / nc);
+      const float t_rel = static_cast<float>(c * period / nc + time_offset);
+      // Absolute time in seconds: integer seconds plus fraction, to keep double precision.
+      const int64_t abs_ns = start_ns + static_cast<int64_t>(std::llround(c * period / nc * 1e9));
+      const double t_abs = static_cast<double>(abs_ns / 1000000000LL) +
+                           static_cast<double>(abs_ns % 1000000000LL) * 1e-9;
       for (int r = 0; r < nr; ++r) {
         const Sample& s = samples[static_cast<size_t>(c) * nr + r];
         if (!(s.range > 0.0f)) continue;
@@ -123,7 +133,8 @@ CloudBuffer ScanGenerator::Generate(int k) const {
         Put(dst, 8, s.z);
         Put(dst, 16, s.intensity);
         Put(dst, 20, static_cast<uint16_t>(r));
-        Put(dst, 24, t_rel);
+        if (opt_.time_field == TF::kDriverDefault) Put(dst, 24, t_rel);
+        if (opt_.time_field == TF::kAbsoluteF64) Put(dst, 24, t_abs);
         dst += cloud.point_step;
       }
     }

@@ -97,7 +97,7 @@ SimSummary RunSimulation(const SimConfig& cfg, std::ostream& log) {
     sum.seconds_scans += Since(t0);
     t0 = std::chrono::steady_clock::now();
     // A driver publishes a sweep when it is complete: the bag time is the scan end.
-    const int64_t bag_time = cloud.stamp_ns + period_ns;
+    const int64_t bag_time = cfg.start_ns + static_cast<int64_t>(k + 1) * period_ns;
     flush_imu(bag_time);
     bag.WriteCloud(cloud, bag_time);
     sum.seconds_write += Since(t0);
@@ -161,11 +161,17 @@ SimSummary RunSimulation(const SimConfig& cfg, std::ostream& log) {
         << "  max_range: " << (so.max_range > 0 ? so.max_range : model.max_range) << "\n"
         << "  point_layout: "
         << (model.layout == PointLayout::kVelodyne
-                ? "velodyne (x y z intensity f32, ring u16, time f32 s from scan start)"
+                ? (so.time_field == ScanOptions::TimeField::kNone
+                       ? "velodyne without per-point time (x y z intensity f32, ring u16)"
+                   : so.time_field == ScanOptions::TimeField::kAbsoluteF64
+                       ? "velodyne with absolute time (x y z intensity f32, ring u16, timestamp "
+                         "f64 s since the epoch)"
+                       : "velodyne (x y z intensity f32, ring u16, time f32 s from the header "
+                         "stamp)")
                 : "ouster (x y z intensity f32, t u32 ns from scan start, reflectivity u16, "
                   "ring u16, ambient u16, range u32 mm; organized)")
         << "\n"
-        << "  header_stamp: scan_start\n"
+        << "  header_stamp: " << (so.stamp_at_end ? "scan_end" : "scan_start") << "\n"
         << "  spin: clockwise seen from above, first column behind the sensor (azimuth +180 deg)\n"
         << "  range_noise_std: " << so.range_noise << "\n"
         << "imu_sim:\n"

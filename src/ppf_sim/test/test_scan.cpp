@@ -259,3 +259,44 @@ TEST(Noise, RangeNoiseHasTheRequestedSigma) {
 
 }  // namespace
 }  // namespace ppf::sim
+
+namespace ppf::sim {
+namespace {
+
+// Other drivers' time conventions must describe the same firing times.
+TEST(TimeConventions, StampAtEndAndAbsoluteTimesAgreeWithTheDefault) {
+  WorldOptions o;
+  o.duration = 5;
+  const World w = BuildWorld(o);
+  ScanOptions so;
+  so.start_ns = 1700000000LL * 1000000000LL;
+  const LidarModel m = GetLidarModel("vlp16");
+  const CloudBuffer base = ScanGenerator(w.scene, w.trajectory, m, so).Generate(20);
+  so.stamp_at_end = true;
+  const CloudBuffer end = ScanGenerator(w.scene, w.trajectory, m, so).Generate(20);
+  so.stamp_at_end = false;
+  so.time_field = ScanOptions::TimeField::kAbsoluteF64;
+  const CloudBuffer abs = ScanGenerator(w.scene, w.trajectory, m, so).Generate(20);
+  so.time_field = ScanOptions::TimeField::kNone;
+  const CloudBuffer none = ScanGenerator(w.scene, w.trajectory, m, so).Generate(20);
+
+  EXPECT_EQ(base.stamp_ns, so.start_ns + 2000000000LL);
+  EXPECT_EQ(end.stamp_ns, base.stamp_ns + 100000000LL);
+  ASSERT_EQ(end.width, base.width);
+  ASSERT_EQ(abs.width, base.width);
+  EXPECT_EQ(none.Field("time"), nullptr);
+  EXPECT_EQ(none.Field("timestamp"), nullptr);
+  const PointFieldDesc* ts = abs.Field("timestamp");
+  ASSERT_NE(ts, nullptr);
+  EXPECT_EQ(ts->datatype, kFloat64);
+  const double stamp_s = 1700000002.0;
+  for (size_t i = 0; i < base.num_points(); i += 13) {
+    const float t = base.Get<float>(i, *base.Field("time"));
+    EXPECT_NEAR(end.Get<float>(i, *end.Field("time")), t - 0.1f, 1e-6);
+    EXPECT_NEAR(abs.Get<double>(i, *ts) - stamp_s, t, 1e-6);
+    EXPECT_EQ(none.Get<float>(i, *none.Field("x")), base.Get<float>(i, *base.Field("x")));
+  }
+}
+
+}  // namespace
+}  // namespace ppf::sim

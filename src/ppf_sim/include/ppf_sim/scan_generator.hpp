@@ -24,6 +24,12 @@ struct ScanOptions {
   int64_t start_ns = 0;       // absolute time of sim time 0
   std::string frame_id = "lidar";
   double max_range = 0.0;     // 0 = model default
+  // Other drivers' time conventions (velodyne layout only), for testing time-field detection:
+  // kDriverDefault: `time` f32 s after the header stamp; kNone: no per-point time at all;
+  // kAbsoluteF64: `timestamp` f64 absolute seconds (Hesai-style).
+  enum class TimeField { kDriverDefault, kNone, kAbsoluteF64 } time_field = TimeField::kDriverDefault;
+  // Header stamp at the scan end (ROS 1 velodyne style): relative times are then negative.
+  bool stamp_at_end = false;
 };
 
 class ScanGenerator {

@@ -11,7 +11,7 @@
 namespace ppf {
 
 bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double threshold, Eigen::Vector3d* n,
-              double* d) {
+              double* d, double min_spread) {
   if (pts.size() < 3) return false;
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   for (const auto& p : pts) c += p.cast<double>();
@@ -24,6 +24,7 @@ bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double threshold, Eigen::
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
   // Collinear neighbours (a single scan line) span no plane: the middle eigenvalue vanishes.
   if (es.eigenvalues()(1) < 1e-6 * std::max(1e-12, es.eigenvalues()(2))) return false;
+  if (es.eigenvalues()(1) < min_spread * min_spread * static_cast<double>(pts.size())) return false;
   *n = es.eigenvectors().col(0).normalized();
   *d = -n->dot(c);
   for (const auto& p : pts) {
@@ -61,7 +62,7 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
       if (map.GetClosest(p_w.cast<float>(), k, options_.max_neighbor_distance, &nn) < k) continue;
       Eigen::Vector3d normal;
       double d;
-      if (!FitPlane(nn, options_.plane_threshold, &normal, &d)) continue;
+      if (!FitPlane(nn, options_.plane_threshold, &normal, &d, options_.min_plane_spread)) continue;
       const double r = normal.dot(p_w) + d;
       if (!(std::abs(r) < options_.max_residual)) continue;
       PointPlaneRow& row = tmp[static_cast<size_t>(j)];

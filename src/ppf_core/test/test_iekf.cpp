@@ -112,6 +112,16 @@ TEST(KnnResidual, PlaneValidityRejectsNonPlanarNeighbours) {
   EXPECT_FALSE(FitPlane(corner, 0.1, &n, &d));
   std::vector<Eigen::Vector3f> line = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}, {4, 0, 0}};
   EXPECT_FALSE(FitPlane(line, 0.1, &n, &d));
+  // A 1 m piece of a scan ring on the floor 7.5 m away: nearly collinear. Accepted by the distance
+  // test alone; rejected once a minimum cross spread is required.
+  std::vector<Eigen::Vector3f> arc;
+  for (int i = -2; i <= 2; ++i) {
+    const double a = 0.033 * i;
+    arc.emplace_back(static_cast<float>(7.5 * std::cos(a)), static_cast<float>(7.5 * std::sin(a)), -2.f);
+  }
+  EXPECT_TRUE(FitPlane(arc, 0.1, &n, &d));
+  EXPECT_FALSE(FitPlane(arc, 0.1, &n, &d, 0.04));
+  EXPECT_TRUE(FitPlane(flat, 0.1, &n, &d, 0.04));
 }
 
 }  // namespace

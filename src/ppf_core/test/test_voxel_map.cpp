@@ -106,6 +106,12 @@ TEST(VoxelMap, DownsampleKeepsOneCentroidPerVoxel) {
   EXPECT_TRUE(out[0].isApprox(Eigen::Vector3f(0.2f, 0.2f, 0.2f)));
   EXPECT_TRUE(out[1].isApprox(Eigen::Vector3f(1.2f, 0.1f, 0.1f)));
   EXPECT_EQ(VoxelDownsample(pts, 0.0).size(), pts.size());  // 0 disables, never crashes
+  // Nearest-to-centroid keeps a measured point: the first voxel's centroid (0.2) is equidistant
+  // from both points, the first one wins; the second voxel has only one point.
+  const auto picked = VoxelDownsample(pts, 0.5, DownsampleMode::kNearestToCentroid);
+  ASSERT_EQ(picked.size(), 2u);
+  EXPECT_TRUE(picked[0] == pts[0] || picked[0] == pts[1]);
+  EXPECT_EQ(picked[1], pts[2]);
 }
 
 // Ten minutes at 10 Hz of a vehicle driving a 6 km loop-free path at 10 m/s (6000 scans of 1000

@@ -16,14 +16,20 @@ struct KnnOptions {
   int k = 5;                          // neighbours per point
   double max_neighbor_distance = 1.0; // metres; farther neighbours do not count
   double plane_threshold = 0.1;       // metres; every neighbour within this of the fitted plane
+  // Metres; if > 0, neighbours must also spread at least this much (std) across their main
+  // direction. Neighbours along one scan ring are nearly collinear and their plane normal is
+  // poorly defined. Off by default: with 0.5 m voxels it also removes most floor rows of a
+  // 16-beam LiDAR (z then rests on the IMU alone); it pays off with finer voxels (0.25 m).
+  double min_plane_spread = 0.0;
   double max_residual = 0.5;          // metres; larger residuals are treated as outliers
   int num_threads = 0;                // 0 = OpenMP default
 };
 
-// Least-squares plane n.x + d = 0 through `pts` (>= 3). Returns false if degenerate or if a point
-// is farther than `threshold` from the plane.
+// Least-squares plane n.x + d = 0 through `pts` (>= 3). Returns false if the points do not span a
+// plane (std across their main direction below min_spread) or if a point is farther than
+// `threshold` from the plane.
 bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double threshold, Eigen::Vector3d* n,
-              double* d);
+              double* d, double min_spread = 0.0);
 
 class KnnResidualProvider : public ResidualProvider {
  public:

@@ -141,6 +141,30 @@ TEST(LioPpf, NoTimeFieldFallbackIsReported) {
   EXPECT_FALSE(lio.time_field_info().present);
 }
 
+TEST(LioPpf, CorridorIsReportedDegenerate) {
+  // A long corridor whose ends are out of range: nothing constrains motion along x.
+  test::Scene corridor;
+  corridor.boxes.push_back({Eigen::Vector3d(-300, -2, -1.5), Eigen::Vector3d(300, 2, 2.5), true});
+  test::LidarModel lidar;
+  lidar.azimuth_steps = 360;
+  lidar.max_range = 40.0;
+  const test::PoseFn still = [](double) { return Eigen::Isometry3d::Identity(); };
+  LioPpf lio;
+  FeedStill(&lio, 0.0, 1.25);
+  ScanResult r;
+  for (double t0 : {1.0, 1.1}) {
+    const auto pts =
+        test::SimulateScan(corridor, still, Eigen::Isometry3d::Identity(), t0, lidar);
+    const test::CloudBuffer c = test::MakeCloud(pts, t0, pts.back().t, test::TimeEncoding());
+    r = lio.ProcessScan(c.view);
+  }
+  EXPECT_EQ(r.status, Status::kDegenerate) << r.reason;
+  EXPECT_TRUE(r.pose_valid);
+  EXPECT_NE(r.reason.find("translation"), std::string::npos) << r.reason;
+  EXPECT_LT(r.eig_translation(0), lio.config().iekf.degeneracy_min_eig_translation);
+  EXPECT_LT(r.T_world_imu.translation().norm(), 0.01);  // the IMU (static) keeps x in place
+}
+
 // kPpf extension point: a splitter marking every other point as skeleton and a provider that
 // records how it is called.
 class EveryOther : public ScanSplitter {

@@ -149,7 +149,12 @@ int main(int argc, char** argv) {
     cfg.imu_frame = args.Str("imu-frame", "imu");
     cfg.bag.points_topic = args.Str("points-topic", "/points");
     cfg.bag.imu_topic = args.Str("imu-topic", "/imu");
-    if (args.Has("threads")) omp_set_num_threads(static_cast<int>(args.Num("threads", 1)));
+    if (args.Has("threads")) {
+      const double threads = args.Num("threads", 1);
+      if (threads < 1 || threads > 256 || threads != static_cast<int>(threads))
+        throw std::invalid_argument("--threads must be an integer >= 1");
+      omp_set_num_threads(static_cast<int>(threads));
+    }
 
     std::printf("ppf_sim: scene %s, lidar %s, %.1f s, seed %llu -> %s (%s)\n",
                 cfg.world.scene.c_str(), cfg.lidar.c_str(), cfg.world.duration,

@@ -136,8 +136,15 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
     Read(queues, "queues", "scan_capacity", &c->scan_queue_capacity, &r);
     Read(queues, "queues", "imu_capacity", &c->imu_queue_capacity, &r);
   }
-  YAML::Node core = section("core", {"config_file"});
-  if (core) Read(core, "core", "config_file", &c->core_config_file, &r);
+  YAML::Node core = section("core", {"config_file", "mode"});
+  if (core) {
+    Read(core, "core", "config_file", &c->core_config_file, &r);
+    Read(core, "core", "mode", &c->core_mode, &r);
+    if (!c->core_mode.empty() && c->core_mode != "knn" && c->core_mode != "ppf") {
+      r.ok = false;
+      r.error = "core.mode must be knn or ppf, not '" + c->core_mode + "'";
+    }
+  }
   YAML::Node traj = section("trajectory", {"tum_file"});
   if (traj) Read(traj, "trajectory", "tum_file", &c->tum_file, &r);
   YAML::Node diag = section("diagnostics", {"period_s", "malformed_log_interval_s"});

@@ -138,7 +138,8 @@ TEST(Cyclone, CycloneDdsPeerFeedsNodeAndReceivesOdometryAndPlanes) {
     std::ofstream cfg(dir + "/node.yaml");
     cfg << "dds: {domain_id: " << domain << ", profiles_file: \"" << PPF_DDS_CONFIG_DIR
         << "/shm_udp.xml\", profile_name: ppf_shm_udp}\n"
-        << "core: {config_file: \"" << PPF_CONFIG_DIR << "/vlp16.yaml\"}\n";
+        // PPF mode, so the skeleton-plane messages carry planes.
+        << "core: {config_file: \"" << PPF_CONFIG_DIR << "/vlp16.yaml\", mode: ppf}\n";
   }
   {
     std::ofstream xml(dir + "/cyclone.xml");
@@ -191,4 +192,6 @@ TEST(Cyclone, CycloneDdsPeerFeedsNodeAndReceivesOdometryAndPlanes) {
   EXPECT_EQ(SummaryField(result, "odom_not_monotonic"), 0);
   EXPECT_EQ(SummaryField(result, "planes"), published);
   EXPECT_EQ(SummaryField(result, "planes_bad"), 0);
+  // Sparse VLP-16 scans do not give a plane in every scan (measured: 24 planes over 50 scans).
+  EXPECT_GT(SummaryField(result, "planes_total"), 0);
 }

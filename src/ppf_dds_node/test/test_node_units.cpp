@@ -52,6 +52,8 @@ TEST(NodeConfig, WrongTypesAndValuesAreErrorsNamingTheKey) {
   EXPECT_FALSE(r.ok);
   r = LoadNodeConfigString("{{{", &c);
   EXPECT_FALSE(r.ok);
+  r = LoadNodeConfigString("core: {mode: fast}\n", &c);
+  EXPECT_FALSE(r.ok);
 }
 
 TEST(NodeConfig, UnknownKeysWarnAndNonsenseIsClamped) {

@@ -6,7 +6,8 @@
 //   qos:     { sensor_reliability: best_effort|reliable, sensor_depth }
 //   outputs: { tf, path, path_max_poses, skeleton_planes, registered_points }
 //   queues:  { scan_capacity, imu_capacity }
-//   core:    { config_file }          ppf_core YAML (config/hdl64.yaml, ...), empty = defaults
+//   core:    { config_file, mode }    ppf_core YAML (config/hdl64.yaml, ...), empty = defaults;
+//                                     mode knn|ppf overrides the file's mode
 //   trajectory: { tum_file }          written on shutdown (TUM: t x y z qx qy qz qw), empty = off
 //   diagnostics: { period_s, malformed_log_interval_s }
 #pragma once
@@ -49,6 +50,7 @@ struct NodeConfig {
   int imu_queue_capacity = 100000;
 
   std::string core_config_file;
+  std::string core_mode;  // "", "knn" or "ppf" ("" = as in core_config_file)
   std::string tum_file;
 
   double diagnostics_period_s = 5.0;

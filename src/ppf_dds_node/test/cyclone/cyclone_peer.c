@@ -51,7 +51,7 @@ static char* rd_str(FILE* f) {
 }
 
 typedef struct {
-  int odom, odom_bad, odom_frames_bad, odom_not_monotonic, planes, planes_bad;
+  int odom, odom_bad, odom_frames_bad, odom_not_monotonic, planes, planes_bad, planes_total;
   double last_odom_stamp;
 } tally_t;
 
@@ -100,6 +100,7 @@ static void drain(dds_entity_t odom_reader, dds_entity_t planes_reader, tally_t*
       const ppf_msgs_msg_dds__SkeletonPlaneArray_* a =
           (const ppf_msgs_msg_dds__SkeletonPlaneArray_*)samples[i];
       t->planes++;
+      t->planes_total += (int)a->planes._length;
       int bad = strcmp(a->header.frame_id, "odom") != 0;
       for (uint32_t k = 0; k < a->planes._length; ++k) {
         const ppf_msgs_msg_dds__SkeletonPlane_* pl = &a->planes._buffer[k];
@@ -285,9 +286,9 @@ int main(int argc, char** argv) {
     }
   }
   printf("RESULT sent_scans=%d sent_imu=%d write_errors=%d odom=%d odom_bad=%d odom_frames_bad=%d "
-         "odom_not_monotonic=%d planes=%d planes_bad=%d\n",
+         "odom_not_monotonic=%d planes=%d planes_bad=%d planes_total=%d\n",
          sent_scans, sent_imu, write_errors, t.odom, t.odom_bad, t.odom_frames_bad,
-         t.odom_not_monotonic, t.planes, t.planes_bad);
+         t.odom_not_monotonic, t.planes, t.planes_bad, t.planes_total);
   fflush(stdout);
   dds_delete(pp);
   return 0;

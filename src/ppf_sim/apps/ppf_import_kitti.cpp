@@ -11,8 +11,9 @@ DIR is a KITTI raw drive folder (e.g. 2011_09_26_drive_0001_extract or _sync):
   velodyne_points/timestamps.txt (+ timestamps_start.txt, timestamps_end.txt)
   oxts/data/*.txt (30 values) + oxts/timestamps.txt   (100 Hz in *_extract, 10 Hz in *_sync)
 Writes BAG as a rosbag2 directory with velodyne-layout PointCloud2 (x y z intensity f32,
-ring u16, time f32) and sensor_msgs/Imu. If calib_imu_to_velo.txt is found in DIR or its
-parent, BAG/calibration.yaml gets T_imu_lidar.
+ring u16, time f32) and sensor_msgs/Imu. BAG/groundtruth.tum gets the OXTS poses (T_world_imu,
+east-north-up axes, origin at the first fix, Mercator scale as in the KITTI devkit). If
+calib_imu_to_velo.txt is found in DIR or its parent, BAG/calibration.yaml gets T_imu_lidar.
 
 Time: header.stamp = scan START (timestamps_start.txt; without it timestamps.txt - period/2).
 KITTI scans have no per-point time: `time` (s after the stamp) is computed from each point's

@@ -101,6 +101,7 @@ ImportSummary ImportKittiRaw(const std::string& raw_dir, const std::string& out_
   struct Imu {
     int64_t t;
     double w[3], a[3];
+    double lat, lon, alt, roll, pitch, yaw;
   };
   std::vector<Imu> imu;
   const auto oxts = SortedFiles(root / "oxts" / "data", ".txt");
@@ -116,6 +117,12 @@ ImportSummary ImportKittiRaw(const std::string& raw_dir, const std::string& out_
       if (v.size() < 23) throw std::runtime_error(oxts[i].string() + ": expected 30 OXTS values");
       Imu s;
       s.t = ot[i];
+      s.lat = v[0];
+      s.lon = v[1];
+      s.alt = v[2];
+      s.roll = v[3];
+      s.pitch = v[4];
+      s.yaw = v[5];
       // Field order: lat lon alt roll pitch yaw vn ve vf vl vu ax ay az af al au wx wy wz wf wl wu
       const int a0 = opt.imu_body_axes ? 11 : 14, w0 = opt.imu_body_axes ? 17 : 20;
       for (int k = 0; k < 3; ++k) {
@@ -188,6 +195,35 @@ ImportSummary ImportKittiRaw(const std::string& raw_dir, const std::string& out_
   }
   flush_imu(INT64_MAX);
   bag.Close();
+
+  // Ground truth from the OXTS poses, as the KITTI devkit converts them (Mercator scale of the
+  // first fix), but kept gravity-aligned: origin at the first fix, axes east-north-up, rotation
+  // R = Rz(yaw) Ry(pitch) Rx(roll) of the OXTS (IMU) frame.
+  if (!imu.empty()) {
+    std::ofstream gt(fs::path(out_dir) / "groundtruth.tum");
+    gt << "# timestamp tx ty tz qx qy qz qw: T_world_imu from OXTS (IMU frame in a local "
+          "east-north-up frame at the first fix)\n";
+    const double er = 6378137.0;
+    const double scale = std::cos(imu[0].lat * M_PI / 180.0);
+    auto mercator = [&](const Imu& s) {
+      return Eigen::Vector3d(scale * er * s.lon * M_PI / 180.0,
+                             scale * er * std::log(std::tan((90.0 + s.lat) * M_PI / 360.0)), s.alt);
+    };
+    const Eigen::Vector3d origin = mercator(imu[0]);
+    for (const Imu& s : imu) {
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.linear() = EulerToRotation({s.roll, s.pitch, s.yaw});
+      T.translation() = mercator(s) - origin;
+      const Eigen::Quaterniond q(T.linear());
+      char buf[256];
+      std::snprintf(buf, sizeof(buf), "%lld.%09lld %.6f %.6f %.6f %.9f %.9f %.9f %.9f",
+                    static_cast<long long>(s.t / 1000000000LL),
+                    static_cast<long long>(s.t % 1000000000LL), T.translation().x(),
+                    T.translation().y(), T.translation().z(), q.x(), q.y(), q.z(), q.w());
+      gt << buf << "\n";
+    }
+    sum.notes.push_back("groundtruth.tum written from the OXTS poses (ENU at the first fix)");
+  }
 
   // KITTI's calib_imu_to_velo.txt (in the date folder) holds T_velo_imu; write T_imu_lidar.
   for (const fs::path& cand : {root / "calib_imu_to_velo.txt", root.parent_path() / "calib_imu_to_velo.txt"}) {

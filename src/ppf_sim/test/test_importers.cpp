@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
+#include <sstream>
 
 #include "ppf_bag/bag.hpp"
 #include "ppf_sim/importers.hpp"
@@ -67,7 +69,12 @@ TEST(KittiImport, SyntheticDriveRoundTrip) {
     char name[32];
     std::snprintf(name, sizeof(name), "%010d.txt", i);
     std::ofstream f(raw / "oxts" / "data" / name);
-    for (int k = 0; k < 30; ++k) f << (k == 11 ? 0.5 + i : k == 13 ? 9.8 : k == 19 ? 0.01 * i : 0.0) << (k < 29 ? " " : "\n");
+    // lat, lon (moving east ~1.1 m per sample at this latitude), alt, roll, pitch, yaw, ...
+    for (int k = 0; k < 30; ++k) {
+      const double v = k == 0 ? 49.0 : k == 1 ? 8.4 + 1e-5 * i : k == 2 ? 110.0 : k == 5 ? 0.3
+                     : k == 11 ? 0.5 + i : k == 13 ? 9.8 : k == 19 ? 0.01 * i : 0.0;
+      f << std::setprecision(12) << v << (k < 29 ? " " : "\n");
+    }
     char t[64];
     std::snprintf(t, sizeof(t), "2011-09-26 13:02:%02d.%09d", 25 + (90 + i) / 100, ((90 + i) % 100) * 10000000);  // 100 Hz
     ot << t << "\n";
@@ -109,6 +116,24 @@ TEST(KittiImport, SyntheticDriveRoundTrip) {
   }
   EXPECT_EQ(clouds, 3);
   EXPECT_EQ(imus, 30);
+  // Ground truth from OXTS: starts at the origin, moves east, yaw 0.3 rad.
+  std::ifstream gt(out / "groundtruth.tum");
+  std::string line;
+  std::getline(gt, line);
+  EXPECT_EQ(line[0], '#');
+  std::vector<std::vector<double>> rows;
+  while (std::getline(gt, line)) {
+    std::istringstream ss(line);
+    std::vector<double> v(8);
+    for (double& x : v) ss >> x;
+    rows.push_back(v);
+  }
+  ASSERT_EQ(rows.size(), 30u);
+  EXPECT_NEAR(rows[0][1], 0.0, 1e-6);
+  const double east_per_sample = std::cos(49.0 * M_PI / 180) * 6378137.0 * 1e-5 * M_PI / 180;
+  EXPECT_NEAR(rows[29][1], 29 * east_per_sample, 1e-3);
+  EXPECT_NEAR(rows[29][2], 0.0, 1e-6);
+  EXPECT_NEAR(2 * std::atan2(rows[29][6], rows[29][7]), 0.3, 1e-9);  // qz, qw of a pure yaw
   fs::remove_all(raw.parent_path());
   fs::remove_all(out);
 }

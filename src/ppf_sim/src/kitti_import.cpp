@@ -214,7 +214,8 @@ ImportSummary ImportKittiRaw(const std::string& raw_dir, const std::string& out_
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       T.linear() = EulerToRotation({s.roll, s.pitch, s.yaw});
       T.translation() = mercator(s) - origin;
-      const Eigen::Quaterniond q(T.linear());
+      Eigen::Quaterniond q(T.linear());
+      if (q.w() < 0) q.coeffs() *= -1.0;
       char buf[256];
       std::snprintf(buf, sizeof(buf), "%lld.%09lld %.6f %.6f %.6f %.9f %.9f %.9f %.9f",
                     static_cast<long long>(s.t / 1000000000LL),

@@ -39,7 +39,9 @@ Eigen::Isometry3d DefaultImuLidarExtrinsic() {
 SimConfig::SimConfig() { scan.T_imu_lidar = DefaultImuLidarExtrinsic(); }
 
 std::string TumLine(int64_t stamp_ns, const Eigen::Isometry3d& T) {
-  const Eigen::Quaterniond q(T.linear());
+  // w >= 0: one sign for each rotation, so consecutive lines never flip sign.
+  Eigen::Quaterniond q(T.linear());
+  if (q.w() < 0) q.coeffs() *= -1.0;
   char buf[256];
   const int64_t sec = stamp_ns / 1000000000LL, nsec = stamp_ns % 1000000000LL;
   std::snprintf(buf, sizeof(buf), "%" PRId64 ".%09" PRId64 " %.9f %.9f %.9f %.9f %.9f %.9f %.9f",

@@ -123,6 +123,10 @@ TEST_P(SimBag, ReadableWithRightCountsTypesAndBytes) {
   EXPECT_EQ(line[0], '#');
   int rows = 0;
   while (std::getline(gt, line)) {
+    std::istringstream fields(line);
+    double v[8];
+    for (double& x : v) fields >> x;
+    EXPECT_GE(v[7], 0.0);  // qw: one sign per rotation
     if (rows == 250) {
       EXPECT_EQ(line, TumLine(cfg.start_ns + 250 * 5000000LL, world.trajectory.Pose(1.25)));
     }

@@ -16,7 +16,6 @@ constexpr double kKnotDt = 0.1;
 
 using namespace detail;
 
-
 std::vector<std::string> SceneNames() { return {"urban", "indoor", "park", "ramps"}; }
 
 MotionKind DefaultMotion(const std::string& scene) {

@@ -233,7 +233,10 @@ struct LioPpf::Impl {
     std::vector<ScanResult> out;
     while (!scans.empty()) {
       QueuedScan& q = scans.front();
-      if (!q.rejected && !flush && last_imu_stamp < q.scan.t_end) break;  // wait for the IMU
+      // Wait for the IMU to cover the scan, unless the IMU stream has stalled: scans newer than
+      // the last IMU sample by more than max_imu_gap_s are not held back forever.
+      const bool imu_stalled = scans.back().stamp_s - last_imu_stamp > config.max_imu_gap_s;
+      if (!q.rejected && !flush && !imu_stalled && last_imu_stamp < q.scan.t_end) break;
       // Reset notices belong before the first scan processed after the reset.
       for (ScanResult& r : pending) out.push_back(std::move(r));
       pending.clear();
@@ -314,6 +317,11 @@ struct LioPpf::Impl {
     std::vector<ImuSample> samples(imu.begin(), imu.end());
     PoseTrace trace;
     PropagateImu(samples, t_end, init.acc_scale(), config.noise, &state, &trace);
+    if (t_end - last_imu_stamp > 0.02) {
+      std::ostringstream os;
+      os << "IMU extrapolated by " << t_end - last_imu_stamp << " s (last sample held)";
+      Append(&r.reason, os.str());
+    }
     std::vector<Eigen::Vector3f> deskewed;
     if (scan.has_time_field || scan.times_estimated) {
       DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &deskewed, config.num_threads);

@@ -123,6 +123,22 @@ TEST(LioPpf, TimeGoingBackwardsResets) {
   EXPECT_TRUE(lio.initialized());
 }
 
+TEST(LioPpf, StalledImuDoesNotHoldScansForever) {
+  LioPpf lio;
+  FeedStill(&lio, 0.0, 1.3);
+  const test::CloudBuffer s1 = StillScan(1.2);
+  lio.AddScan(s1.view);
+  ASSERT_EQ(lio.Process().size(), 1u);  // covered by the IMU
+  const test::CloudBuffer s2 = StillScan(1.3);
+  lio.AddScan(s2.view);
+  EXPECT_TRUE(lio.Process().empty());  // waits for IMU up to its end
+  const test::CloudBuffer s3 = StillScan(2.0);  // IMU silent for 0.7 s > max_imu_gap 0.5 s
+  lio.AddScan(s3.view);
+  const std::vector<ScanResult> rs = lio.Process();
+  ASSERT_EQ(rs.size(), 2u);
+  EXPECT_NE(rs[1].reason.find("IMU extrapolated"), std::string::npos) << rs[1].reason;
+}
+
 TEST(LioPpf, NoTimeFieldFallbackIsReported) {
   Config config;
   config.time.no_time_policy = NoTimePolicy::kNoDeskew;

@@ -5,7 +5,7 @@
 //   field name : "t" (Ouster), "time" (Velodyne), "timestamp" (Hesai), "time_stamp",
 //                "offset_time" (Livox)
 //   type       : uint32 -> nanoseconds (Ouster, Livox); float32 -> seconds (Velodyne);
-//                float64 -> seconds, often absolute epoch time (Hesai); uint64 -> nanoseconds
+//                float64 -> seconds, often absolute epoch time (Hesai); other integer types -> ns
 //   reference  : relative to the header stamp, or absolute. Detected by magnitude: values within
 //                1 s of a header stamp that is itself > 10 s are absolute; otherwise relative.
 //   header     : stamp at scan start (default) or at scan end. Relative times <= 0 (ending at 0)

@@ -78,7 +78,7 @@ build_workspace() {
   # memory more than they need package-level parallelism.
   MAKEFLAGS="-j${jobs}" colcon build \
     --parallel-workers 1 \
-    --event-handlers console_cohesion- console_stderr+ status- \
+    --event-handlers console_cohesion- console_stderr+ \
     --cmake-args -DCMAKE_BUILD_TYPE=Release
   log "built: source install/setup.bash to use ppf_node, ppf_sim, ppf_offline, ppf_eval, ..."
 }

@@ -17,7 +17,7 @@ set -u
 rm -rf build/*/Testing  # results of earlier runs must not be counted again
 echo "[test] running colcon test"
 colcon test --parallel-workers 1 \
-  --event-handlers console_cohesion- console_direct- status- \
+  --event-handlers console_cohesion- console_direct- \
   --ctest-args --timeout 600 >log/colcon_test_console.log 2>&1
 colcon_rc=$?
 

@@ -248,6 +248,8 @@ int main(int argc, char** argv) {
               Field(summary, "decode_p50_ms"), Field(summary, "decode_p99_ms"), "");
   std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "  of which: scan queue -> executor",
               Field(summary, "queue_p50_ms"), Field(summary, "queue_p99_ms"), "");
+  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "  of which: conversion + publishing all outputs",
+              Field(summary, "publish_p50_ms"), Field(summary, "publish_p99_ms"), "");
   std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "scan queued behind the core (older scans)",
               Field(summary, "behind_core_p50_ms"), Field(summary, "behind_core_p99_ms"), "");
   std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "scan waiting in core for IMU coverage",

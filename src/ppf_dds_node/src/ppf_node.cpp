@@ -298,6 +298,7 @@ struct PpfNode::Impl {
   }
 
   void Publish(const ScanResult& r, const PendingScan& p, double core_ms, double imu_wait_ms) {
+    const Clock::time_point publish_start = Clock::now();
     {
       std::lock_guard<std::mutex> lock(stats_mutex);
       ++summary.scans_processed;
@@ -358,6 +359,7 @@ struct PpfNode::Impl {
     decode_stats.Add(p.decode_ms);
     queue_stats.Add(p.queue_ms);
     behind_core_stats.Add(p.behind_core_ms);
+    publish_stats.Add(MsBetween(publish_start, published));
     // Node overhead: everything between DDS receive and publish that is not the core working on
     // this scan, waiting for the core to finish earlier scans, or waiting for the IMU that covers
     // the scan end (the last two are reported apart).
@@ -461,6 +463,8 @@ struct PpfNode::Impl {
     s.queue_p99_ms = queue_stats.Percentile(99);
     s.behind_core_p50_ms = behind_core_stats.Percentile(50);
     s.behind_core_p99_ms = behind_core_stats.Percentile(99);
+    s.publish_p50_ms = publish_stats.Percentile(50);
+    s.publish_p99_ms = publish_stats.Percentile(99);
     return s;
   }
 
@@ -533,7 +537,7 @@ struct PpfNode::Impl {
   mutable std::mutex stats_mutex;
   NodeSummary summary;
   LatencyStats latency_ms, core_time_ms, overhead_ms, imu_wait_stats, decode_stats, queue_stats,
-      behind_core_stats;
+      behind_core_stats, publish_stats;
   std::atomic<int64_t> core_busy_ns{0};  // total executor time inside the core
   bool torn_down = false;
 
@@ -740,6 +744,7 @@ std::string PpfNode::FormatSummary(const NodeSummary& s) {
     << " queue_p50_ms=" << s.queue_p50_ms << " queue_p99_ms=" << s.queue_p99_ms
     << " behind_core_p50_ms=" << s.behind_core_p50_ms
     << " behind_core_p99_ms=" << s.behind_core_p99_ms
+    << " publish_p50_ms=" << s.publish_p50_ms << " publish_p99_ms=" << s.publish_p99_ms
     << " last_status=" << (s.last_status.empty() ? "none" : s.last_status);
   return o.str();
 }

@@ -1,6 +1,10 @@
 // In-process units of the node: config parsing and the hand-over queue.
 #include <gtest/gtest.h>
 
+#include <fastdds/rtps/common/SerializedPayload.h>
+
+#include "ppf_bridge/cdr.hpp"
+#include "ppf_bridge/cdr_payload.hpp"
 #include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/node_config.hpp"
 #include "ppf_dds_node/time_ordered_queue.hpp"
@@ -108,6 +112,43 @@ TEST(LatencyStats, NearestRankPercentiles) {
   EXPECT_DOUBLE_EQ(s.Percentile(99), 99);
   EXPECT_DOUBLE_EQ(s.Percentile(100), 100);
   EXPECT_DOUBLE_EQ(s.Max(), 100);
+}
+
+// The listener's in-place decode must accept and reject exactly what DecodeCdr does.
+TEST(DecodeCdrPayload, AgreesWithDecodeCdrOnValidAndMalformedPayloads) {
+  sensor_msgs::msg::PointCloud2 c;
+  c.header().frame_id("lidar");
+  c.width(3);
+  c.height(1);
+  c.point_step(4);
+  c.row_step(12);
+  c.data() = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+  const std::vector<uint8_t> good = bridge::EncodeCdr(c);
+  std::vector<uint8_t> padded = good;
+  while (padded.size() % 4) padded.push_back(0);
+  std::vector<uint8_t> truncated(good.begin(), good.begin() + static_cast<long>(good.size() / 2));
+  std::vector<uint8_t> bad_encapsulation = good;
+  bad_encapsulation[1] = 0x07;  // XCDR2: not what ROS 2 writes
+  const std::vector<uint8_t> garbage = {0x00, 0x01, 0x00, 0x00, 0xff, 0xff, 0xff, 0x7f, 0x01};
+  const std::vector<uint8_t> tiny = {0x00, 0x01};
+  const std::vector<const std::vector<uint8_t>*> cases = {&good,    &padded,  &truncated,
+                                                          &bad_encapsulation, &garbage, &tiny};
+  for (const auto* bytes : cases) {
+    eprosima::fastrtps::rtps::SerializedPayload_t payload(static_cast<uint32_t>(bytes->size()));
+    std::copy(bytes->begin(), bytes->end(), payload.data);
+    payload.length = static_cast<uint32_t>(bytes->size());
+    sensor_msgs::msg::PointCloud2 a, b;
+    std::string ea, eb;
+    const bool ok_a = bridge::DecodeCdr(*bytes, &a, &ea);
+    const bool ok_b = bridge::DecodeCdrPayload(&payload, &b, &eb);
+    EXPECT_EQ(ok_a, ok_b) << ea << " / " << eb;
+    if (ok_a && ok_b) {
+      EXPECT_EQ(a, b);
+    }
+    if (!ok_b) {
+      EXPECT_FALSE(eb.empty());
+    }
+  }
 }
 
 }  // namespace

@@ -42,6 +42,7 @@ struct NodeSummary {
   double decode_p50_ms = 0, decode_p99_ms = 0;      // listener: take + CDR decode + checks
   double queue_p50_ms = 0, queue_p99_ms = 0;        // scan queue -> executor
   double behind_core_p50_ms = 0, behind_core_p99_ms = 0;  // of queue: core busy with older scans
+  double publish_p50_ms = 0, publish_p99_ms = 0;    // result -> all outputs written
   std::string last_status;
 };
 

@@ -1,4 +1,5 @@
-// Reader-side topic type that decodes through ppf_bridge::DecodeCdr and never rejects a sample
+// Reader-side topic type that decodes through ppf_bridge (DecodeCdrPayload: DecodeCdr's checks,
+// straight from the received payload, no extra copy of a multi-MB cloud) and never rejects a sample
 // inside Fast DDS: a malformed payload arrives as {valid = false, error}, so the node counts and
 // logs it (a generated type would make Fast DDS drop it without telling us).
 #pragma once
@@ -8,7 +9,7 @@
 #include <fastdds/dds/topic/TopicDataType.hpp>
 #include <fastdds/rtps/common/SerializedPayload.h>
 
-#include "ppf_bridge/cdr.hpp"
+#include "ppf_bridge/cdr_payload.hpp"
 #include "ppf_bridge/msg_traits.hpp"
 
 namespace ppf::dds {
@@ -39,7 +40,7 @@ class ValidatingPubSubType : public eprosima::fastdds::dds::TopicDataType {
     auto* out = static_cast<Validated<MsgT>*>(data);
     out->payload_size = payload->length;
     out->error.clear();
-    out->valid = bridge::DecodeCdr(payload->data, payload->length, &out->msg, &out->error);
+    out->valid = bridge::DecodeCdrPayload(payload, &out->msg, &out->error);
     return true;  // delivered either way; the listener decides
   }
 

@@ -70,7 +70,7 @@ fi
 if have ppf_offline; then
   for mode in knn ppf; do
     step "offline, --mode $mode"
-    ppf_offline --bag "$SEQ" --config "$CONFIG" --mode "$mode" \
+    ppf_offline --bag "$SEQ" --config "$CONFIG" --config "$SEQ/calibration.yaml" --mode "$mode" \
       --out "$OUT/offline_${mode}.tum" --stats "$OUT/offline_${mode}.csv"
     if have ppf_eval; then
       ppf_eval ape --ref "$SEQ/groundtruth.tum" --est "$OUT/offline_${mode}.tum" --align se3

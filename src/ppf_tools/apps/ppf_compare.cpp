@@ -147,6 +147,9 @@ int main(int argc, char** argv) {
     const std::string preset = config_dir + "/" + seq.lidar + ".yaml";
     const auto report = ppf::LoadConfigYaml(preset, &config);
     if (!report.ok) Fail(preset + ": " + report.error);
+    // The simulated robot's calibration (its T_imu_lidar) on top of the LiDAR preset.
+    const auto calib = ppf::LoadConfigYaml(bag + "/calibration.yaml", &config);
+    if (!calib.ok) Fail(bag + "/calibration.yaml: " + calib.error);
     if (threads >= 0) config.num_threads = threads;
     ppf::Trajectory gt;
     std::string error;

@@ -27,7 +27,9 @@ constexpr const char* kUsage = R"(usage: ppf_offline --bag DIR [options]
 Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) without DDS, as fast as possible.
 
   --bag PATH            bag directory (metadata.yaml) or a single .db3/.mcap file (required)
-  --config FILE         YAML config (config/<lidar>.yaml); every key optional
+  --config FILE         YAML config (config/<lidar>.yaml); every key optional. Repeatable:
+                        later files override earlier ones (e.g. a LiDAR preset, then the
+                        robot's calibration.yaml with its T_imu_lidar)
   --mode knn|ppf        overrides the config's mode
   --out FILE            trajectory output (default: trajectory.tum)
   --format tum|kitti    trajectory format (default: tum; KITTI writes 3x4 rows, no stamps)
@@ -43,7 +45,8 @@ Exit status: 0 on success, 1 on a bad bag/config/argument, 2 if no scan produced
 )";
 
 struct Args {
-  std::string bag, config, mode, out = "trajectory.tum", format = "tum", frame = "imu", stats,
+  std::vector<std::string> configs;
+  std::string bag, mode, out = "trajectory.tum", format = "tum", frame = "imu", stats,
                                   points_topic, imu_topic;
   int threads = -1;
   bool quiet = false;
@@ -68,7 +71,7 @@ Args ParseArgs(int argc, char** argv) {
     } else if (arg == "--bag") {
       a.bag = value(i);
     } else if (arg == "--config") {
-      a.config = value(i);
+      a.configs.push_back(value(i));
     } else if (arg == "--mode") {
       a.mode = value(i);
     } else if (arg == "--out") {
@@ -130,10 +133,10 @@ int main(int argc, char** argv) {
   const Args args = ParseArgs(argc, argv);
 
   ppf::Config config;
-  if (!args.config.empty()) {
-    const auto report = ppf::LoadConfigYaml(args.config, &config);
-    for (const auto& w : report.warnings) std::cerr << "ppf_offline: config: " << w << "\n";
-    if (!report.ok) Fail("config " + args.config + ": " + report.error);
+  for (const auto& file : args.configs) {
+    const auto report = ppf::LoadConfigYaml(file, &config);
+    for (const auto& w : report.warnings) std::cerr << "ppf_offline: " << file << ": " << w << "\n";
+    if (!report.ok) Fail("config " + file + ": " + report.error);
   }
   if (args.mode == "knn") config.mode = ppf::Mode::kKnn;
   if (args.mode == "ppf") config.mode = ppf::Mode::kPpf;

@@ -71,6 +71,10 @@ TEST_P(Accuracy, ApeWithinBound) {
   ppf::Config config;
   const auto report = ppf::LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/" + c.lidar + ".yaml", &config);
   ASSERT_TRUE(report.ok) << report.error;
+  // The simulated robot's own calibration (a non-identity T_imu_lidar), as a user would layer
+  // their robot's calibration over a LiDAR preset.
+  const auto calib = ppf::LoadConfigYaml(bag + "/calibration.yaml", &config);
+  ASSERT_TRUE(calib.ok) << calib.error;
   config.mode = c.mode;
 
   const auto run = ppf::tools::RunOffline(bag, config);

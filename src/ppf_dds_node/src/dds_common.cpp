@@ -55,6 +55,10 @@ fdds::DomainParticipant* CreateParticipant(const ParticipantOptions& options, st
     return fail("domain id " + std::to_string(options.domain_id) + " outside 0..232");
   }
   auto* factory = fdds::DomainParticipantFactory::get_instance();
+  // Loads FASTRTPS_DEFAULT_PROFILES_FILE (or DEFAULT_FASTRTPS_PROFILES.xml) once and makes its
+  // default profile the default participant QoS; without this, the QoS read below would be the
+  // built-in default until the first create_participant call.
+  factory->load_profiles();
   if (!options.profiles_file.empty()) {
     if (!std::ifstream(options.profiles_file).good()) {
       return fail("cannot read DDS profiles file '" + options.profiles_file + "'");

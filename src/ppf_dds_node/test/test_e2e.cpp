@@ -90,9 +90,10 @@ struct RunResult {
   std::string dir;
 };
 
-// Runs record + node + replay on `bag` and stops them in order. Fails the test on any hang.
+// Runs record + node + replay on `bag` and stops them in order (the node with `stop_signal`).
+// Fails the test on any hang.
 void RunPipeline(const std::string& bag, const std::string& dir, double rate,
-                 const std::string& extra_node_yaml, RunResult* out) {
+                 const std::string& extra_node_yaml, int stop_signal, RunResult* out) {
   const int domain = ppf::test::TestDomainId(static_cast<int>(rate * 10));
   const std::string dds_args = std::to_string(domain);
   out->dir = dir;
@@ -136,7 +137,7 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
     out->max_rss_kb = std::max(out->max_rss_kb, VmRssKb(node.pid()));
     std::this_thread::sleep_for(100ms);
   }
-  node.Signal(SIGINT);
+  node.Signal(stop_signal);
   ASSERT_TRUE(node.WaitForLine("PPF_NODE_SUMMARY", &out->summary, 30s));
   EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 0));
   record.Signal(SIGINT);
@@ -179,7 +180,7 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
   const std::string dir = dir_ + "/rt";
   ASSERT_EQ(mkdir(dir.c_str(), 0755), 0);
   RunResult run;
-  RunPipeline(dir_ + "/bag", dir, 1.0, "", &run);
+  RunPipeline(dir_ + "/bag", dir, 1.0, "", SIGINT, &run);
   ASSERT_FALSE(HasFatalFailure());
   const auto info = ppf::bag::ReadInfo(dir_ + "/bag");
   double bag_scans = 0;
@@ -264,7 +265,8 @@ TEST_F(EndToEnd, FiveTimesRateKeepsUpOrDropsAsDesignedWithBoundedMemory) {
   const std::string dir = dir_ + "/x5";
   ASSERT_EQ(mkdir(dir.c_str(), 0755), 0);
   RunResult run;
-  RunPipeline(dir_ + "/bag", dir, 5.0, "queues: {scan_capacity: 2}\n", &run);
+  // Stopped with SIGTERM (a service manager's stop) instead of Ctrl-C: same clean shutdown.
+  RunPipeline(dir_ + "/bag", dir, 5.0, "queues: {scan_capacity: 2}\n", SIGTERM, &run);
   ASSERT_FALSE(HasFatalFailure());
   const double received = SummaryField(run.summary, "scans_received");
   const double processed = SummaryField(run.summary, "scans_processed");

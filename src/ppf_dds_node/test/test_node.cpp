@@ -222,6 +222,7 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   EXPECT_EQ(reg.back().width(), cloud.width());  // every synthetic return is finite
   // TUM trajectory flushed on SIGINT: one line per odometry message.
   EXPECT_EQ(static_cast<double>(CountLines(tum)), published);
+  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }
 
 TEST(NodeProcess, BadConfigFailsFastWithExitCode) {

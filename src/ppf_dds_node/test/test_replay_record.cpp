@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <map>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -163,6 +164,7 @@ TEST_P(ReplayRecord, EveryPayloadComesBackByteForByteIncludingUnknownTypesAndRem
     const double span = 1e-9 * static_cast<double>(got.at("/imu").back().t - got.at("/imu").front().t);
     EXPECT_NEAR(span, 0.59, 0.25);
   }
+  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }
 
 INSTANTIATE_TEST_SUITE_P(Storages, ReplayRecord,
@@ -191,6 +193,53 @@ TEST(ReplayRecordOptions, TopicFilterStartAndRate) {
     const double span = 1e-9 * static_cast<double>(got.at("/imu").back().t - got.at("/imu").front().t);
     EXPECT_NEAR(span, 0.29 / 2, 0.12);
   }
+  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
+}
+
+// --loop plays the bag again until SIGINT; --types makes ppf_record subscribe before any writer
+// is discovered (reliable keep-all), with the given type.
+TEST(ReplayRecordOptions, LoopUntilInterruptedAndExplicitTypes) {
+  const std::string dir = TempDir();
+  const int64_t t0 = 1700000000LL * 1000000000LL;
+  const Topics written = MakeBag(dir + "/in", ppf::bag::Storage::kSqlite3, t0);
+  const std::string domain = std::to_string(ppf::test::TestDomainId(34));
+  const std::vector<std::string> dds = {"--domain", domain, "--profiles", kProfiles, "--profile",
+                                        kProfile};
+  std::vector<std::string> rec = {PPF_RECORD_EXE, "--out", dir + "/out", "--topics", "/imu",
+                                  "--types", "/imu:=sensor_msgs/msg/Imu"};
+  rec.insert(rec.end(), dds.begin(), dds.end());
+  ChildProcess record, replay;
+  ASSERT_TRUE(record.Start(rec, {}, dir + "/record.log"));
+  std::string line;
+  ASSERT_TRUE(record.WaitForLine("PPF_RECORD_READY", &line, 20s));
+  std::vector<std::string> play = {PPF_REPLAY_EXE, "--bag", dir + "/in", "--topics", "/imu",
+                                   "--loop", "--rate", "2", "--wait-matched", "15"};
+  play.insert(play.end(), dds.begin(), dds.end());
+  ASSERT_TRUE(replay.Start(play, {}, dir + "/replay.log"));
+  ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_START", &line, 20s));
+  std::this_thread::sleep_for(1500ms);  // 0.3 s per pass at 2x: several passes
+  replay.Signal(SIGINT);
+  ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &line, 20s));
+  EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
+  const int loops = std::atoi(line.c_str() + line.find("loops=") + 6);
+  EXPECT_GE(loops, 2) << line;
+  std::string done;
+  record.Signal(SIGINT);
+  ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &done, 20s));
+  EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
+  std::map<std::string, std::string> types;
+  const Topics got = ReadBag(dir + "/out", &types);
+  EXPECT_EQ(types["/imu"], "sensor_msgs/msg/Imu");
+  ASSERT_TRUE(got.count("/imu"));
+  const auto& imu = got.at("/imu");
+  const size_t per_pass = written.at("/imu").size();
+  EXPECT_GT(imu.size(), per_pass);
+  // Every pass repeats the bag's payloads in order.
+  for (size_t i = 0; i < imu.size(); ++i) {
+    EXPECT_EQ(imu[i].data, written.at("/imu")[i % per_pass].data) << "message " << i;
+    if (HasFailure()) break;
+  }
+  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }
 
 TEST(ReplayRecordOptions, BadArgumentsAreRejected) {

@@ -48,8 +48,13 @@ struct Publisher {
   }
 };
 
+// The subscriber uses `peer_profiles_file` / `peer_profile` (default: the publisher's) and
+// `peer_env` (e.g. FASTRTPS_DEFAULT_PROFILES_FILE).
 void RunTransportTest(const std::string& profiles_file, const std::string& profile_name,
-                      int domain_salt) {
+                      int domain_salt, const std::string* peer_profiles_file = nullptr,
+                      const std::string* peer_profile = nullptr,
+                      const std::vector<std::string>& peer_env = {},
+                      int expect_user_transports = -1) {
   const int domain = ppf::test::TestDomainId(domain_salt);
   Publisher pub;
   ppf::dds::ParticipantOptions opt;
@@ -78,10 +83,17 @@ void RunTransportTest(const std::string& profiles_file, const std::string& profi
   ASSERT_NE(pub.imu_writer, nullptr);
 
   ppf::test::ChildProcess peer;
-  ASSERT_TRUE(peer.Start({PPF_TRANSPORT_PEER, std::to_string(domain), profiles_file, profile_name,
-                          "40"}));
+  ASSERT_TRUE(peer.Start({PPF_TRANSPORT_PEER, std::to_string(domain),
+                          peer_profiles_file ? *peer_profiles_file : profiles_file,
+                          peer_profile ? *peer_profile : profile_name, "40"},
+                         peer_env));
   std::string line;
   std::vector<std::string> seen;
+  ASSERT_TRUE(peer.WaitForLine("PROFILE", &line, 20s, &seen));
+  if (expect_user_transports >= 0) {
+    EXPECT_EQ(line, "PROFILE builtin_transports=0 user_transports=" +
+                        std::to_string(expect_user_transports));
+  }
   ASSERT_TRUE(peer.WaitForLine("READY", &line, 20s, &seen))
       << "subscriber process never matched (domain " << domain << ")";
   // The subscriber matched us; wait for our side too, so nothing is sent to an unknown reader.
@@ -130,6 +142,15 @@ TEST(Transport, ShmUdpLoopbackProfileDeliversEveryCloudAndImuAcrossProcesses) {
 // is multicast there, as in deployment.
 TEST(Transport, UdpOnlyProfileDeliversEveryCloudAndImuAcrossProcesses) {
   RunTransportTest(PPF_DDS_CONFIG_DIR "/udp_only.xml", "ppf_udp_only", 1);
+}
+
+// The other way to load the profiles: FASTRTPS_DEFAULT_PROFILES_FILE and no profile name, as
+// any Fast DDS 2.x program (or ros2 with rmw_fastrtps) would. The subscriber must get the XML's
+// default profile: builtin transports off, our SHM + UDP transports.
+TEST(Transport, ProfileFromEnvironmentVariableIsTheDefault) {
+  const std::string none;
+  RunTransportTest(PPF_DDS_CONFIG_DIR "/test_loopback.xml", "ppf_test_loopback", 3, &none, &none,
+                   {"FASTRTPS_DEFAULT_PROFILES_FILE=" PPF_DDS_CONFIG_DIR "/test_loopback.xml"}, 2);
 }
 
 TEST(Transport, UnknownProfileIsReportedNotIgnored) {

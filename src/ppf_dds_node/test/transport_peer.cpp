@@ -100,6 +100,7 @@ class ImuListener : public fdds::DataReaderListener {
 
 int main(int argc, char** argv) {
   if (argc < 5) {
+    // PROFILES_XML / PROFILE_NAME may be "" (then FASTRTPS_DEFAULT_PROFILES_FILE applies).
     std::fprintf(stderr, "usage: %s DOMAIN PROFILES_XML PROFILE_NAME TIMEOUT_S\n", argv[0]);
     return 2;
   }
@@ -116,6 +117,14 @@ int main(int argc, char** argv) {
     std::printf("RESULT error=%s\n", error.c_str());
     std::fflush(stdout);
     return 3;
+  }
+  // What the profile gave us (the env-variable test checks this really is the XML's profile).
+  {
+    fdds::DomainParticipantQos q;
+    participant->get_qos(q);
+    std::printf("PROFILE builtin_transports=%d user_transports=%zu\n",
+                q.transport().use_builtin_transports ? 1 : 0, q.transport().user_transports.size());
+    std::fflush(stdout);
   }
   fdds::TypeSupport cloud_type(new sensor_msgs::msg::PointCloud2PubSubType());
   fdds::TypeSupport imu_type(new sensor_msgs::msg::ImuPubSubType());

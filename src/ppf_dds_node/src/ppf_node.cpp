@@ -165,6 +165,14 @@ struct PpfNode::Impl {
       auto msg = std::make_shared<sensor_msgs::msg::PointCloud2>(std::move(sample.msg));
       auto pushed = scan_queue.Push(
           stamp, ScanItem{std::move(msg), received, Clock::now(), core_busy_ns.load()});
+      if (pushed.time_jump) {
+        {
+          std::lock_guard<std::mutex> lock(stats_mutex);
+          ++summary.time_jumps;
+        }
+        jump_log.Log(Level::kWarn, "scan time jumped back to " + std::to_string(stamp) +
+                                       " (bag loop? clock reset?): passed on, the core resets");
+      }
       if (pushed.evicted) {
         {
           std::lock_guard<std::mutex> lock(stats_mutex);
@@ -208,6 +216,11 @@ struct PpfNode::Impl {
       std::lock_guard<std::mutex> lock(stats_mutex);
       ++summary.imu_received;
       if (pushed.out_of_order) ++summary.imu_out_of_order;
+      if (pushed.time_jump) {
+        ++summary.time_jumps;
+        jump_log.Log(Level::kWarn, "IMU time jumped back to " + std::to_string(imu->stamp_s) +
+                                       " (bag loop? clock reset?): passed on, the core resets");
+      }
       if (pushed.evicted) {
         ++summary.imu_overflow;
         // Loud on purpose: losing IMU silently would corrupt the state estimate.
@@ -533,6 +546,7 @@ struct PpfNode::Impl {
   RateLimitedLog malformed_log;
   RateLimitedLog drop_log;
   RateLimitedLog status_log{1.0};
+  RateLimitedLog jump_log{1.0};
 
   mutable std::mutex stats_mutex;
   NodeSummary summary;
@@ -735,6 +749,7 @@ std::string PpfNode::FormatSummary(const NodeSummary& s) {
     << " resets=" << s.resets << " degenerate=" << s.degenerate
     << " imu_received=" << s.imu_received << " imu_malformed=" << s.imu_malformed
     << " imu_overflow=" << s.imu_overflow << " imu_out_of_order=" << s.imu_out_of_order
+    << " time_jumps=" << s.time_jumps
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

@@ -225,6 +225,80 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }
 
+// A bag replayed with --loop: stamps jump back. The node passes the jump on in one piece (no
+// interleaving of the two timelines), the core resets and initializes again, odometry resumes,
+// and the summary reports it.
+TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
+  const int domain = ppf::test::TestDomainId(12);
+  const std::string dir = TempDir();
+  const std::string cfg = dir + "/node.yaml";
+  {
+    std::ofstream out(cfg);
+    out << "dds: {domain_id: " << domain << ", profiles_file: \"" << kProfiles
+        << "\", profile_name: " << kProfile << "}\n"
+        << "queues: {scan_capacity: 100}\n";
+  }
+  ChildProcess node;
+  ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", cfg}, {}, dir + "/node.log"));
+  std::string line;
+  ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
+  TestParticipant driver(domain, kProfiles, kProfile, "test_driver");
+  ASSERT_TRUE(driver.ok()) << driver.error;
+  WriterMatches cloud_m, imu_m;
+  auto* cloud_w = driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
+                                ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 50),
+                                &cloud_m);
+  auto* imu_w = driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
+                              ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 1000),
+                              &imu_m);
+  Collector<nav_msgs::msg::Odometry> odom;
+  ASSERT_NE(driver.Reader(new nav_msgs::msg::OdometryPubSubType(), "rt/odometry",
+                          ppf::dds::KeepAllReaderQos(), &odom), nullptr);
+  ASSERT_TRUE(cloud_w && imu_w);
+  ASSERT_TRUE(WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 &&
+                                     odom.matched > 0; }, 20s));
+  ppf::dds::SyntheticLidar lidar;
+  lidar.rings = 16;
+  lidar.columns = 1024;
+  lidar.min_elevation_deg = -15;
+  lidar.max_elevation_deg = 15;
+  sensor_msgs::msg::PointCloud2 cloud = ppf::dds::MakeRoomScan(lidar, 0);
+  const int64_t t0 = 1700000000LL * 1000000000LL;
+  const int kScans = 10;
+  size_t first_pass = 0;
+  uint64_t seq = 0;
+  for (int pass = 0; pass < 2; ++pass) {  // the same 2.5 s of stamps twice
+    const auto wall0 = std::chrono::steady_clock::now();
+    int64_t imu_t = t0;
+    for (int s = 0; s <= kScans; ++s) {
+      const int64_t scan_end = t0 + 1500000000LL + s * 100000000LL;
+      while (imu_t <= scan_end) {
+        sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(imu_t, seq++);
+        ASSERT_TRUE(imu_w->write(&imu));
+        imu_t += 5000000;
+      }
+      std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(scan_end - t0));
+      if (s == 0) continue;
+      cloud.header().stamp(ppf::bridge::TimeFromNanoseconds(scan_end - 100000000LL));
+      ASSERT_TRUE(cloud_w->write(&cloud));
+    }
+    WaitUntil([&] { return odom.Count() >= static_cast<size_t>(kScans) * (pass + 1) - 2; }, 15s);
+    if (pass == 0) first_pass = odom.Count();
+  }
+  std::this_thread::sleep_for(300ms);
+  node.Signal(SIGINT);
+  ASSERT_TRUE(node.WaitForLine("PPF_NODE_SUMMARY", &line, 30s));
+  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 0));
+  std::printf("%s\n", line.c_str());
+  EXPECT_GE(first_pass, static_cast<size_t>(kScans) - 2);
+  EXPECT_GE(odom.Count(), first_pass + kScans - 3) << "odometry did not resume after the jump";
+  EXPECT_EQ(SummaryField(line, "time_jumps"), 2.0);  // once on /imu, once on /points
+  EXPECT_GE(SummaryField(line, "resets"), 1.0);
+  EXPECT_EQ(SummaryField(line, "scans_processed"), 2.0 * kScans);
+  EXPECT_EQ(SummaryField(line, "imu_out_of_order"), 0.0);
+  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
+}
+
 TEST(NodeProcess, BadConfigFailsFastWithExitCode) {
   const std::string dir = TempDir();
   const std::string cfg = dir + "/bad.yaml";

@@ -84,12 +84,12 @@ TEST(NodeConfig, ShippedPresetsLoadWithoutWarnings) {
 
 TEST(TimeOrderedQueue, KeepsTimeOrderAndEvictsOldestWhenFull) {
   TimeOrderedQueue<int> q(3);
-  EXPECT_FALSE(q.Push(1.0, 1).evicted);
-  EXPECT_FALSE(q.Push(3.0, 3).evicted);
-  const auto late = q.Push(2.0, 2);  // arrives late: sorted in, flagged
+  EXPECT_FALSE(q.Push(0.1, 1).evicted);
+  EXPECT_FALSE(q.Push(0.3, 3).evicted);
+  const auto late = q.Push(0.2, 2);  // arrives late: sorted in, flagged
   EXPECT_TRUE(late.out_of_order);
   EXPECT_FALSE(late.evicted);
-  const auto full = q.Push(4.0, 4);
+  const auto full = q.Push(0.4, 4);
   ASSERT_TRUE(full.evicted);
   EXPECT_EQ(*full.evicted, 1);  // oldest goes first
   std::deque<std::pair<double, int>> out;
@@ -100,6 +100,25 @@ TEST(TimeOrderedQueue, KeepsTimeOrderAndEvictsOldestWhenFull) {
   EXPECT_EQ(out[2].second, 4);
   EXPECT_EQ(q.Size(), 0u);
   EXPECT_FALSE(q.PopFront());
+}
+
+TEST(TimeOrderedQueue, BigJumpBackIsAppendedNotSortedIn) {
+  TimeOrderedQueue<int> q(10, 0.5);
+  q.Push(10.0, 1);
+  q.Push(10.1, 2);
+  const auto jump = q.Push(0.0, 3);  // the bag looped
+  EXPECT_TRUE(jump.time_jump);
+  EXPECT_FALSE(jump.out_of_order);
+  const auto small = q.Push(-0.2, 4);  // reordered within the new timeline
+  EXPECT_FALSE(small.time_jump);
+  EXPECT_TRUE(small.out_of_order);
+  std::deque<std::pair<double, int>> out;
+  q.PopAll(&out);
+  ASSERT_EQ(out.size(), 4u);
+  EXPECT_EQ(out[0].second, 1);
+  EXPECT_EQ(out[1].second, 2);
+  EXPECT_EQ(out[2].second, 4);
+  EXPECT_EQ(out[3].second, 3);
 }
 
 TEST(LatencyStats, NearestRankPercentiles) {

@@ -1,6 +1,11 @@
 // Bounded, time-ordered hand-over queue between DDS listener threads (producers) and the core's
 // executor thread (consumer). Push never blocks: a listener thread must not wait for the core.
 // When full, the OLDEST item is evicted and returned to the caller, which counts/logs it.
+//
+// Ordering is local: an item up to `reorder_window_s` older than queued ones is sorted in (two
+// DDS readers, transport reordering); an item older by more than that is a time jump (a bag
+// replay looping, a clock reset) and is appended, so the consumer sees one clean jump back instead
+// of two timelines interleaved.
 #pragma once
 
 #include <chrono>
@@ -16,11 +21,13 @@ namespace ppf::dds {
 template <typename T>
 class TimeOrderedQueue {
  public:
-  explicit TimeOrderedQueue(size_t capacity) : capacity_(capacity == 0 ? 1 : capacity) {}
+  explicit TimeOrderedQueue(size_t capacity, double reorder_window_s = 0.5)
+      : capacity_(capacity == 0 ? 1 : capacity), reorder_window_s_(reorder_window_s) {}
 
   struct PushResult {
     std::optional<T> evicted;  // the oldest item, if the queue was full
     bool out_of_order = false; // inserted before items already queued
+    bool time_jump = false;    // older than the newest queued item by more than the window
   };
 
   // Inserts by `stamp` (stable for equal stamps). Returns the evicted item, if any.
@@ -29,8 +36,20 @@ class TimeOrderedQueue {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       auto it = items_.end();
-      while (it != items_.begin() && std::prev(it)->first > stamp) --it;
-      result.out_of_order = it != items_.end();
+      // Against the newest stamp ever pushed, so a jump is seen even when the queue is empty.
+      if (has_newest_ && newest_ - stamp > reorder_window_s_) {
+        result.time_jump = true;  // appended as is; the new timeline starts here
+        newest_ = stamp;
+      } else {
+        if (!has_newest_ || stamp > newest_) newest_ = stamp;
+        // Never across a jump boundary: items far newer belong to the previous timeline.
+        while (it != items_.begin() && std::prev(it)->first > stamp &&
+               std::prev(it)->first - stamp <= reorder_window_s_) {
+          --it;
+        }
+        result.out_of_order = it != items_.end();
+      }
+      has_newest_ = true;
       items_.insert(it, {stamp, std::move(item)});
       if (items_.size() > capacity_) {
         result.evicted = std::move(items_.front().second);
@@ -83,6 +102,9 @@ class TimeOrderedQueue {
 
  private:
   const size_t capacity_;
+  const double reorder_window_s_;
+  bool has_newest_ = false;
+  double newest_ = 0.0;
   mutable std::mutex mutex_;
   std::condition_variable cv_;
   std::deque<std::pair<double, T>> items_;

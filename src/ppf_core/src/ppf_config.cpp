@@ -51,6 +51,8 @@ std::vector<std::string> ValidatePpfConfig(PpfConfig* c) {
       d.semi_band_factor, "semi_band_factor", &notes);
   Fix(BadPositive(c->point_to_plane_thresh), &c->point_to_plane_thresh, d.point_to_plane_thresh,
       "point_to_plane_thresh", &notes);
+  Fix(!std::isfinite(c->skeleton_normal_gate_deg) || c->skeleton_normal_gate_deg < 0.0,
+      &c->skeleton_normal_gate_deg, d.skeleton_normal_gate_deg, "skeleton_normal_gate_deg", &notes);
   Fix(c->plane_least_inliers < 3, &c->plane_least_inliers, d.plane_least_inliers,
       "plane_least_inliers", &notes);
   Fix(c->max_planes_per_scan < 0, &c->max_planes_per_scan, d.max_planes_per_scan,
@@ -123,6 +125,7 @@ void ApplyPpfSection(const YAML::Node& section, PpfConfig* c, PpfConfigLoadRepor
       {"delta", num(&c->delta)},
       {"semi_band_factor", num(&c->semi_band_factor)},
       {"point_to_plane_thresh", num(&c->point_to_plane_thresh)},
+      {"skeleton_normal_gate_deg", num(&c->skeleton_normal_gate_deg)},
       {"plane_least_inliers", integer(&c->plane_least_inliers)},
       {"max_planes_per_scan", integer(&c->max_planes_per_scan)},
       {"min_remaining_ratio", num(&c->min_remaining_ratio)},

@@ -4,19 +4,25 @@
 #include <cmath>
 #include <limits>
 
+#include "ppf_core/plane_prefitter.hpp"
 #include "ppf_core/skeleton_window.hpp"
 
 namespace ppf {
 
-void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
-                            const std::vector<int>& skeleton_indices,
-                            const Eigen::Isometry3d& T_world_lidar,
-                            const std::vector<Plane>& window_world, double eps,
-                            std::vector<SkeletonMatch>* matches) {
+namespace {
+
+// own_normals may be empty (no gate); otherwise parallel to skeleton_indices.
+void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
+                   const std::vector<int>& skeleton_indices,
+                   const std::vector<Eigen::Vector3d>& own_normals, double normal_gate_deg,
+                   const Eigen::Isometry3d& T_world_lidar, const std::vector<Plane>& window_world,
+                   double eps, std::vector<SkeletonMatch>* matches) {
   matches->clear();
   if (window_world.empty() || skeleton_indices.empty() || !(eps > 0.0)) return;
-  // Fold the pose into the planes once: |f_W . (T p)| = |((T^-1)^T... )| -> plane in LiDAR frame,
-  // f_L = (T_lidar_world^-1)^T f_W, so each point costs one dot product per plane.
+  const bool gate = normal_gate_deg > 0.0 && own_normals.size() == skeleton_indices.size();
+  const double min_cos = std::cos(std::min(normal_gate_deg, 90.0) * M_PI / 180.0);
+  // Fold the pose into the planes once: f_L = (T_lidar_world^-1)^T f_W (Theorem 1), so each point
+  // costs one dot product per plane and the signed distance is unchanged (rigid motion).
   const Eigen::Isometry3d T_lidar_world = T_world_lidar.inverse();
   const int np = static_cast<int>(window_world.size());
   std::vector<Plane> local(np);
@@ -25,6 +31,7 @@ void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
   const long n = static_cast<long>(skeleton_indices.size());
   const long num_points = static_cast<long>(points_lidar.size());
   std::vector<SkeletonMatch> per_point(n);
+  // Parallel only for large inputs (see ipca.cpp for the measured reason).
 #pragma omp parallel for schedule(static) if (n > 32768)
   for (long i = 0; i < n; ++i) {
     SkeletonMatch m;
@@ -32,16 +39,19 @@ void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
     if (idx >= 0 && idx < num_points) {
       const Eigen::Vector3d p = points_lidar[idx].cast<double>();
       double best = std::numeric_limits<double>::infinity();
+      int best_plane = -1;
       for (int j = 0; j < np; ++j) {
+        if (gate && std::abs(own_normals[i].dot(local[j].n)) < min_cos) continue;
         const double s = local[j].SignedDistance(p);
         if (std::abs(s) < std::abs(best)) {
           best = s;
-          m.plane_index = j;
+          best_plane = j;
         }
       }
-      if (std::abs(best) < eps) {
+      if (best_plane >= 0 && std::abs(best) < eps) {
         m.point_index = idx;
-        m.signed_distance = best;  // rigid transforms preserve the (unit-normal) distance
+        m.plane_index = best_plane;
+        m.signed_distance = best;
       }
     }
     per_point[i] = m;
@@ -51,8 +61,33 @@ void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
   }
 }
 
+}  // namespace
+
+void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
+                            const std::vector<int>& skeleton_indices,
+                            const Eigen::Isometry3d& T_world_lidar,
+                            const std::vector<Plane>& window_world, double eps,
+                            std::vector<SkeletonMatch>* matches) {
+  MatchSkeleton(points_lidar, skeleton_indices, {}, 0.0, T_world_lidar, window_world, eps, matches);
+}
+
+void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
+                            const std::vector<int>& skeleton_indices,
+                            const std::vector<Eigen::Vector3d>& own_normals_lidar,
+                            double normal_gate_deg, const Eigen::Isometry3d& T_world_lidar,
+                            const std::vector<Plane>& window_world, double eps,
+                            std::vector<SkeletonMatch>* matches) {
+  MatchSkeleton(points_lidar, skeleton_indices, own_normals_lidar, normal_gate_deg, T_world_lidar,
+                window_world, eps, matches);
+}
+
 SkeletonResidualProvider::SkeletonResidualProvider(const SkeletonWindow* window, double eps)
     : window_(window), eps_(eps) {}
+
+void SkeletonResidualProvider::SetPrefitSource(const PrefitResult* prefit, double normal_gate_deg) {
+  prefit_ = prefit;
+  normal_gate_deg_ = normal_gate_deg;
+}
 
 void SkeletonResidualProvider::Reset() {
   frame_ = nullptr;
@@ -70,13 +105,32 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
     if (frame.labels[i] == PointLabel::kSkeleton) skeleton_indices_.push_back(static_cast<int>(i));
   }
   matches_.clear();
+  own_normals_.clear();
+  if (prefit_ != nullptr && normal_gate_deg_ > 0.0) {
+    // Normal of each skeleton point's own plane; the gate is skipped if labels and pre-fit
+    // disagree (a custom splitter changed the labels).
+    std::vector<int> plane_of(frame.points_lidar.size(), -1);
+    for (size_t k = 0; k < prefit_->skeleton_indices.size(); ++k) {
+      const int idx = prefit_->skeleton_indices[k];
+      if (idx >= 0 && idx < static_cast<int>(plane_of.size()))
+        plane_of[idx] = prefit_->skeleton_plane[k];
+    }
+    for (int idx : skeleton_indices_) {
+      const int pl = plane_of[idx];
+      if (pl < 0 || pl >= static_cast<int>(prefit_->planes.size())) {
+        own_normals_.clear();
+        break;
+      }
+      own_normals_.push_back(prefit_->planes[pl].plane.n);
+    }
+  }
 }
 
 void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
                                            std::vector<PointPlaneRow>* rows) {
   if (frame_ == nullptr) return;
-  ComputeSkeletonMatches(frame_->points_lidar, skeleton_indices_, T_world_lidar, planes_world_,
-                         eps_, &matches_);
+  MatchSkeleton(frame_->points_lidar, skeleton_indices_, own_normals_, normal_gate_deg_,
+                T_world_lidar, planes_world_, eps_, &matches_);
   rows->reserve(rows->size() + matches_.size());
   for (const SkeletonMatch& m : matches_) {
     PointPlaneRow row;

@@ -6,7 +6,9 @@ SkeletonTracker::SkeletonTracker(const PpfConfig& config)
     : prefitter_(config),
       window_(prefitter_.config()),
       provider_(std::make_shared<SkeletonResidualProvider>(
-          &window_, prefitter_.config().point_to_plane_thresh)) {}
+          &window_, prefitter_.config().point_to_plane_thresh)) {
+  provider_->SetPrefitSource(&prefit_, prefitter_.config().skeleton_normal_gate_deg);
+}
 
 void SkeletonTracker::Split(ScanFrame* frame) {
   const std::vector<PlaneGuess> guesses =

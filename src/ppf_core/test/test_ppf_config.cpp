@@ -22,6 +22,7 @@ TEST(PpfConfig, DefaultsScaleWithBeamCount) {
   EXPECT_DOUBLE_EQ(d.delta, 0.1);
   EXPECT_DOUBLE_EQ(d.delta * d.semi_band_factor, 0.4);
   EXPECT_DOUBLE_EQ(d.point_to_plane_thresh, 0.2);
+  EXPECT_DOUBLE_EQ(d.skeleton_normal_gate_deg, 10.0);
   EXPECT_EQ(d.max_planes_per_scan, 5);
   EXPECT_EQ(d.window_size, 5);
   EXPECT_EQ(d.ipca_iterations_new, 3);

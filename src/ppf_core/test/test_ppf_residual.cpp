@@ -55,6 +55,31 @@ TEST(PpfSkeletonResidual, UsesThePoseAndKeepsNoStaleMatches) {
   EXPECT_NEAR(m[0].signed_distance, 0.1, 1e-9);
 }
 
+TEST(PpfSkeletonResidual, NormalGateRejectsMatchesToPerpendicularPlanes) {
+  // The window knows only the floor; a new wall (x = 5) was fitted in this scan. Its foot points
+  // lie within eps of the floor and would be matched to it by Eq. 10 alone.
+  const std::vector<Plane> window = {Plane{Eigen::Vector3d::UnitZ(), 0.0}};
+  const std::vector<Eigen::Vector3f> pts = {{5, 0, 0.15f}, {5, 1, 0.1f}, {2, 0, 0.05f}};
+  const std::vector<int> idx = {0, 1, 2};
+  const std::vector<Eigen::Vector3d> own = {Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitX(),
+                                            Eigen::Vector3d::UnitZ()};  // wall, wall, floor
+  std::vector<SkeletonMatch> m;
+  ComputeSkeletonMatches(pts, idx, Eigen::Isometry3d::Identity(), window, 0.2, &m);
+  EXPECT_EQ(m.size(), 3u);  // no gate: the wall's foot matches the floor
+  ComputeSkeletonMatches(pts, idx, own, 10.0, Eigen::Isometry3d::Identity(), window, 0.2, &m);
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_EQ(m[0].point_index, 2);
+  // The gate compares normals in the same frame: a rotated pose rotates the window plane.
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  ComputeSkeletonMatches(pts, idx, own, 10.0, T, window, 0.2, &m);
+  for (const SkeletonMatch& x : m) EXPECT_NE(x.point_index, 2);  // floor normal now off by 90
+  // Mismatched normal list (e.g. a custom splitter): gate skipped rather than misapplied.
+  ComputeSkeletonMatches(pts, idx, {Eigen::Vector3d::UnitX()}, 10.0, Eigen::Isometry3d::Identity(),
+                         window, 0.2, &m);
+  EXPECT_EQ(m.size(), 3u);
+}
+
 TEST(PpfSkeletonResidual, ProviderRowsReproduceEquationTen) {
   PpfConfig cfg;
   SkeletonWindow window(cfg);

@@ -55,10 +55,11 @@ TEST(PpfTracker, LabelsRowsAndWindowThroughTheHooks) {
       EXPECT_TRUE(rows.empty());  // empty window: nothing to match yet
     } else {
       // With the window from the previous scan nearly every skeleton point is matched, and at
-      // the true pose every residual is small.
+      // the true pose every residual is small: within delta of its own plane, plus the small
+      // difference between this scan's fit and the window's (previous scan's) fit.
       EXPECT_GT(rows.size(), skeleton * 9 / 10);
       for (const PointPlaneRow& row : rows) {
-        ASSERT_LT(std::abs(row.normal_world.dot(PoseAt(scan) * row.point_lidar) + row.offset), 0.1);
+        ASSERT_LT(std::abs(row.normal_world.dot(PoseAt(scan) * row.point_lidar) + row.offset), 0.12);
       }
       EXPECT_EQ(tracker.last_prefit().guesses_accepted, 3);
     }

@@ -19,6 +19,7 @@
 namespace ppf {
 
 class SkeletonWindow;
+struct PrefitResult;
 
 struct SkeletonMatch {
   int point_index = -1;          // index into the scan's points
@@ -34,12 +35,28 @@ void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
                             const std::vector<Plane>& window_world, double eps,
                             std::vector<SkeletonMatch>* matches);
 
+// The same with a normal-consistency gate: `own_normals_lidar[i]` is the normal of the plane the
+// pre-fitter assigned skeleton_indices[i] to (scan frame); a window plane is a candidate only if
+// the angle between the normals is below normal_gate_deg (<= 0: no gate). Why: a point of a
+// plane that is new in this scan (not in the window yet) lying within eps of another window plane
+// (a wall's foot near the floor) would otherwise be matched to that plane.
+void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
+                            const std::vector<int>& skeleton_indices,
+                            const std::vector<Eigen::Vector3d>& own_normals_lidar,
+                            double normal_gate_deg, const Eigen::Isometry3d& T_world_lidar,
+                            const std::vector<Plane>& window_world, double eps,
+                            std::vector<SkeletonMatch>* matches);
+
 // Residual rows of the skeleton points of a ScanFrame (labels == kSkeleton) against a window.
 // The window is read at BeginScan (F from the previous scan, as in the reference pipeline; this
 // scan's planes enter the window only after the update, see PpfScanSplitter).
 class SkeletonResidualProvider : public ResidualProvider {
  public:
   SkeletonResidualProvider(const SkeletonWindow* window, double eps);
+
+  // Enables the normal-consistency gate (see above) using the pre-fit of the current scan, which
+  // must be complete before BeginScan (SkeletonTracker does this). normal_gate_deg <= 0: off.
+  void SetPrefitSource(const PrefitResult* prefit, double normal_gate_deg);
   std::string Name() const override { return "skeleton"; }
   void BeginScan(const ScanFrame& frame) override;
   void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
@@ -56,6 +73,9 @@ class SkeletonResidualProvider : public ResidualProvider {
   std::vector<Plane> planes_world_;
   std::vector<int> skeleton_indices_;
   std::vector<SkeletonMatch> matches_;
+  const PrefitResult* prefit_ = nullptr;
+  double normal_gate_deg_ = 0.0;
+  std::vector<Eigen::Vector3d> own_normals_;  // per skeleton_indices_ entry, scan frame
 };
 
 }  // namespace ppf

@@ -21,7 +21,8 @@ bool RawPubSubType::serialize(void* data, SerializedPayload_t* payload) {
   const auto* msg = static_cast<const RawMessage*>(data);
   if (msg->payload.size() < 4 || msg->payload.size() > UINT32_MAX) return false;
   const uint32_t size = static_cast<uint32_t>(msg->payload.size());
-  if (payload->max_size < size) payload->reserve(size);
+  // Fast DDS sized the payload with getSerializedSizeProvider; never grow a pool-owned buffer.
+  if (payload->max_size < size) return false;
   std::memcpy(payload->data, msg->payload.data(), size);
   payload->length = size;
   // The encapsulation is part of the stored bytes; keep Fast DDS's field consistent with them.

@@ -11,7 +11,7 @@
 // building blocks at varying setbacks with cross streets, parked cars, poles, tree trunks, and
 // tree crowns and hedges that return scattered points. Each
 // scan is downsampled with the core's 0.5 m voxel grid (the pipeline's input to PPF). Incremental
-// guesses come from the skeleton window moved by a "predicted" pose ~3 cm / 0.06 deg off the truth,
+// guesses come from the skeleton window moved by a "predicted" pose ~3 cm / 0.2 deg off the truth,
 // as an IMU prediction would be. The first scan (cold start, no window yet) is not counted.
 #include <algorithm>
 #include <chrono>
@@ -259,7 +259,7 @@ int main(int argc, char** argv) {
       row.mode = incremental ? "incremental" : "ransac only";
       row.threads = threads;
       for (int k = 0; k < opt.scans; ++k) {
-        // The prediction is off by a few cm and 0.06 deg, like an IMU-propagated pose over 0.1 s.
+        // The prediction is off by ~3 cm and 0.2 deg: a pessimistic IMU-propagated pose over 0.1 s.
         Eigen::Isometry3d err = Eigen::Isometry3d::Identity();
         err.linear() =
             Eigen::AngleAxisd(0.0035, Eigen::Vector3d(0.3, 0.2, 1).normalized()).toRotationMatrix();

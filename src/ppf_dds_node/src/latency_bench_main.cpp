@@ -92,7 +92,7 @@ int main(int argc, char** argv) {
   std::string profiles = ExeDir() + "/../share/ppf_dds_node/config/dds/shm_udp.xml";
   std::string profile = "ppf_shm_udp";
   int domain = 1 + static_cast<int>(getpid() % 200);
-  bool omp_passive = false;
+  std::string omp_policy;  // "" = the node's own default (core.omp_wait_policy: passive)
   int node_nice = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -105,15 +105,15 @@ int main(int argc, char** argv) {
     else if (a == "--profiles") profiles = next();
     else if (a == "--profile") profile = next();
     else if (a == "--domain") domain = std::atoi(next().c_str());
-    else if (a == "--omp-passive") omp_passive = true;
+    else if (a == "--omp-wait-policy") omp_policy = next();
     else if (a == "--node-nice") node_nice = std::atoi(next().c_str());
     else {
       std::fprintf(stderr,
                    "usage: ppf_latency_bench [--scans N=100] [--rate HZ=10] [--rings 64] "
                    "[--columns 2048]\n  [--node PATH] [--profiles XML] [--profile NAME] "
-                   "[--domain ID] [--omp-passive]\n"
-                   "  --omp-passive  run the node with OMP_WAIT_POLICY=passive (idle OpenMP workers\n"
-                   "                 sleep instead of spinning: matters when CPUs are shared)\n"
+                   "[--domain ID] [--omp-wait-policy passive|active] [--node-nice N]\n"
+                   "  --omp-wait-policy P  OMP_WAIT_POLICY for the node (default: the node's\n"
+                   "                       core.omp_wait_policy, passive)\n"
                    "  --node-nice N  run the node under nice -n N (negative: higher priority)\n");
       return 2;
     }
@@ -129,7 +129,7 @@ int main(int argc, char** argv) {
   }
   ppf::test::ChildProcess node;
   std::vector<std::string> node_env;
-  if (omp_passive) node_env.push_back("OMP_WAIT_POLICY=passive");
+  if (!omp_policy.empty()) node_env.push_back("OMP_WAIT_POLICY=" + omp_policy);
   std::vector<std::string> node_argv = {node_exe, "--config", cfg};
   if (node_nice != 0) {
     node_argv.insert(node_argv.begin(), {"/usr/bin/nice", "-n", std::to_string(node_nice)});
@@ -247,8 +247,9 @@ int main(int argc, char** argv) {
   std::printf("ppf_latency_bench: %d scans x %u points (%.1f MB, HDL-64 size) at %.0f Hz, "
               "profile %s, OMP_WAIT_POLICY %s, node nice %d\n\n",
               scans, cloud.width(), cloud_mb, rate_hz, profile.c_str(),
-              omp_passive ? "passive" : (std::getenv("OMP_WAIT_POLICY") ? std::getenv("OMP_WAIT_POLICY")
-                                                                        : "default"),
+              !omp_policy.empty()               ? omp_policy.c_str()
+              : std::getenv("OMP_WAIT_POLICY") ? std::getenv("OMP_WAIT_POLICY")
+                                                : "passive (node default)",
               node_nice);
   std::printf("| %-52s | %8s | %8s | %8s |\n", "metric (ms)", "p50", "p99", "max");
   std::printf("|%s|%s|%s|%s|\n", std::string(54, '-').c_str(), std::string(10, '-').c_str(),

@@ -136,10 +136,17 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
     Read(queues, "queues", "scan_capacity", &c->scan_queue_capacity, &r);
     Read(queues, "queues", "imu_capacity", &c->imu_queue_capacity, &r);
   }
-  YAML::Node core = section("core", {"config_file", "mode"});
+  YAML::Node core = section("core", {"config_file", "mode", "omp_wait_policy"});
   if (core) {
     Read(core, "core", "config_file", &c->core_config_file, &r);
     Read(core, "core", "mode", &c->core_mode, &r);
+    Read(core, "core", "omp_wait_policy", &c->omp_wait_policy, &r);
+    if (!c->omp_wait_policy.empty() && c->omp_wait_policy != "passive" &&
+        c->omp_wait_policy != "active") {
+      r.ok = false;
+      r.error = "core.omp_wait_policy must be passive, active or \"\", not '" +
+                c->omp_wait_policy + "'";
+    }
     if (!c->core_mode.empty() && c->core_mode != "knn" && c->core_mode != "ppf") {
       r.ok = false;
       r.error = "core.mode must be knn or ppf, not '" + c->core_mode + "'";

@@ -1,7 +1,11 @@
 // ppf_node --config FILE: LiDAR-inertial odometry on plain DDS (ROS 2 compatible topics).
 #include <signal.h>
 
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <thread>
@@ -51,6 +55,15 @@ int main(int argc, char** argv) {
     }
   }
   if (domain_override >= 0) config.participant.domain_id = domain_override;
+
+  // libgomp reads OMP_WAIT_POLICY when it is loaded, before main: to apply the configured policy
+  // the process re-executes itself once with it set (same pid, nothing created yet).
+  if (!config.omp_wait_policy.empty() && std::getenv("OMP_WAIT_POLICY") == nullptr) {
+    setenv("OMP_WAIT_POLICY", config.omp_wait_policy.c_str(), 1);
+    execv("/proc/self/exe", argv);
+    Log(Level::kWarn, std::string("could not apply OMP_WAIT_POLICY (re-exec failed: ") +
+                          std::strerror(errno) + "); continuing with the default");
+  }
 
   // Signals are handled by a dedicated thread (sigwait), so stop() never runs in a signal handler.
   sigset_t set;

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -91,6 +92,16 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", cfg}, {}, dir + "/node.log"));
   std::string line;
   ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
+  {
+    // core.omp_wait_policy (default passive) is applied by re-executing: same pid, env set.
+    std::ifstream env("/proc/" + std::to_string(node.pid()) + "/environ");
+    std::stringstream ss;
+    ss << env.rdbuf();
+    const std::string e = ss.str();
+    if (std::getenv("OMP_WAIT_POLICY") == nullptr) {
+      EXPECT_NE(e.find(std::string("OMP_WAIT_POLICY=passive") + '\0'), std::string::npos);
+    }
+  }
 
   TestParticipant driver(domain, kProfiles, kProfile, "test_driver");
   ASSERT_TRUE(driver.ok()) << driver.error;

@@ -58,6 +58,8 @@ TEST(NodeConfig, WrongTypesAndValuesAreErrorsNamingTheKey) {
   EXPECT_FALSE(r.ok);
   r = LoadNodeConfigString("core: {mode: fast}\n", &c);
   EXPECT_FALSE(r.ok);
+  r = LoadNodeConfigString("core: {omp_wait_policy: lazy}\n", &c);
+  EXPECT_FALSE(r.ok);
 }
 
 TEST(NodeConfig, UnknownKeysWarnAndNonsenseIsClamped) {

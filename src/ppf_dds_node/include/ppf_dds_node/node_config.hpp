@@ -6,7 +6,8 @@
 //   qos:     { sensor_reliability: best_effort|reliable, sensor_depth }
 //   outputs: { tf, path, path_max_poses, skeleton_planes, registered_points }
 //   queues:  { scan_capacity, imu_capacity }
-//   core:    { config_file, mode }    ppf_core YAML (config/hdl64.yaml, ...), empty = defaults;
+//   core:    { config_file, mode, omp_wait_policy }
+//                                     ppf_core YAML (config/hdl64.yaml, ...), empty = defaults;
 //                                     mode knn|ppf overrides the file's mode
 //   trajectory: { tum_file }          written on shutdown (TUM: t x y z qx qy qz qw), empty = off
 //   diagnostics: { period_s, malformed_log_interval_s }
@@ -51,6 +52,12 @@ struct NodeConfig {
 
   std::string core_config_file;
   std::string core_mode;  // "", "knn" or "ppf" ("" = as in core_config_file)
+  // OpenMP idle workers: "passive" (sleep), "active" (spin) or "" (leave the environment alone).
+  // Spinning workers compete with the DDS and executor threads (and the core's own next
+  // iteration) when CPUs are shared: measured on 2 shared cores, passive halves the core time and
+  // the node overhead p99. Applied by re-executing ppf_node once with OMP_WAIT_POLICY set, unless
+  // OMP_WAIT_POLICY is already in the environment (an explicit choice wins).
+  std::string omp_wait_policy = "passive";
   std::string tum_file;
 
   double diagnostics_period_s = 5.0;

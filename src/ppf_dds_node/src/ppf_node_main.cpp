@@ -60,7 +60,13 @@ int main(int argc, char** argv) {
   // the process re-executes itself once with it set (same pid, nothing created yet).
   if (!config.omp_wait_policy.empty() && std::getenv("OMP_WAIT_POLICY") == nullptr) {
     setenv("OMP_WAIT_POLICY", config.omp_wait_policy.c_str(), 1);
-    execv("/proc/self/exe", argv);
+    // The real path, not /proc/self/exe: the process name (ps, pgrep) stays "ppf_node".
+    char self[4096];
+    const ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
+    if (n > 0) {
+      self[n] = '\0';
+      execv(self, argv);
+    }
     Log(Level::kWarn, std::string("could not apply OMP_WAIT_POLICY (re-exec failed: ") +
                           std::strerror(errno) + "); continuing with the default");
   }

@@ -6,6 +6,7 @@
 #include <deque>
 #include <fstream>
 #include <iomanip>
+#include <map>
 #include <mutex>
 #include <sstream>
 #include <thread>
@@ -29,6 +30,7 @@
 #include "ppf_core/lio_ppf.hpp"
 #include "ppf_core/ppf_config.hpp"
 #include "ppf_core/skeleton_tracker.hpp"
+#include "ppf_dds_node/gap_counter.hpp"
 #include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/logging.hpp"
 #include "ppf_dds_node/time_ordered_queue.hpp"
@@ -172,6 +174,16 @@ struct PpfNode::Impl {
         ReturnToPool(buffer.release());
         continue;
       }
+      if (const uint64_t missing = cloud_gaps.Count(info.sample_identity.writer_guid(),
+                                                    info.sample_identity.sequence_number().to64long())) {
+        {
+          std::lock_guard<std::mutex> lock(stats_mutex);
+          summary.scans_lost += missing;
+        }
+        lost_log.Log(Level::kWarn, "points: " + std::to_string(missing) +
+                                       " scan(s) never reached the node (transport loss or "
+                                       "reader history overwritten)");
+      }
       {
         std::lock_guard<std::mutex> lock(stats_mutex);
         ++summary.scans_received;
@@ -233,6 +245,19 @@ struct PpfNode::Impl {
       if (reader->take_next_sample(&sample, &info) != ReturnCode_t::RETCODE_OK) break;
       if (!info.valid_data) continue;
       if (!accepting.load()) continue;
+      if (const uint64_t missing = imu_gaps.Count(info.sample_identity.writer_guid(),
+                                                  info.sample_identity.sequence_number().to64long())) {
+        uint64_t total;
+        {
+          std::lock_guard<std::mutex> lock(stats_mutex);
+          summary.imu_lost += missing;
+          total = summary.imu_lost;
+        }
+        // Loud: the filter integrates every IMU sample (the core also sees the time gap).
+        Log(Level::kError, "imu: " + std::to_string(missing) +
+                               " sample(s) never reached the node (transport loss or reader "
+                               "history overwritten; total " + std::to_string(total) + ")");
+      }
       std::string error = sample.error;
       std::optional<ImuSample> imu;
       if (sample.valid) imu = bridge::ToImuSample(sample.msg, &error);
@@ -581,6 +606,8 @@ struct PpfNode::Impl {
   RateLimitedLog drop_log;
   RateLimitedLog status_log{1.0};
   RateLimitedLog jump_log{1.0};
+  RateLimitedLog lost_log{1.0};
+  GapCounter cloud_gaps, imu_gaps;  // each used by its reader's listener only
 
   mutable std::mutex stats_mutex;
   NodeSummary summary;
@@ -783,7 +810,8 @@ std::string PpfNode::FormatSummary(const NodeSummary& s) {
     << " resets=" << s.resets << " degenerate=" << s.degenerate
     << " imu_received=" << s.imu_received << " imu_malformed=" << s.imu_malformed
     << " imu_overflow=" << s.imu_overflow << " imu_out_of_order=" << s.imu_out_of_order
-    << " time_jumps=" << s.time_jumps
+    << " time_jumps=" << s.time_jumps << " scans_lost=" << s.scans_lost
+    << " imu_lost=" << s.imu_lost
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

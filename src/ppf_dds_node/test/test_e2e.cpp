@@ -183,9 +183,10 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
   RunPipeline(dir_ + "/bag", dir, 1.0, "", SIGINT, &run);
   ASSERT_FALSE(HasFatalFailure());
   const auto info = ppf::bag::ReadInfo(dir_ + "/bag");
-  double bag_scans = 0;
+  double bag_scans = 0, bag_imus = 0;
   for (const auto& t : info.topics) {
     if (t.info.name == "/points") bag_scans = static_cast<double>(t.message_count);
+    if (t.info.name == "/imu") bag_imus = static_cast<double>(t.message_count);
   }
   ASSERT_GT(bag_scans, 90);
   // Nothing lost at real-time rate: every scan reached the node and the core.
@@ -194,6 +195,9 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
   EXPECT_EQ(SummaryField(run.summary, "scans_dropped"), 0);
   EXPECT_EQ(SummaryField(run.summary, "scans_malformed"), 0);
   EXPECT_EQ(SummaryField(run.summary, "imu_overflow"), 0);
+  EXPECT_EQ(SummaryField(run.summary, "scans_lost"), 0);
+  EXPECT_EQ(SummaryField(run.summary, "imu_lost"), 0);
+  EXPECT_EQ(SummaryField(run.summary, "imu_received"), bag_imus);
   EXPECT_EQ(SummaryField(run.summary, "resets"), 0);
   // One odometry message per processed scan that has a pose (initialization scans have none).
   const double odom = SummaryField(run.summary, "odometry_published");
@@ -271,8 +275,17 @@ TEST_F(EndToEnd, FiveTimesRateKeepsUpOrDropsAsDesignedWithBoundedMemory) {
   const double received = SummaryField(run.summary, "scans_received");
   const double processed = SummaryField(run.summary, "scans_processed");
   const double dropped = SummaryField(run.summary, "scans_dropped");
-  // Every received scan is either processed or counted as dropped: nothing vanishes.
+  // Every received scan is either processed or counted as dropped, and every scan the replay
+  // sent was either received or counted as lost on the way: nothing vanishes.
   EXPECT_EQ(processed + dropped + SummaryField(run.summary, "scans_malformed"), received);
+  double bag_scans = 0, bag_imus = 0;
+  for (const auto& t : ppf::bag::ReadInfo(dir_ + "/bag").topics) {
+    if (t.info.name == "/points") bag_scans = static_cast<double>(t.message_count);
+    if (t.info.name == "/imu") bag_imus = static_cast<double>(t.message_count);
+  }
+  EXPECT_EQ(received + SummaryField(run.summary, "scans_lost"), bag_scans);
+  EXPECT_EQ(SummaryField(run.summary, "imu_received") + SummaryField(run.summary, "imu_lost"),
+            bag_imus);
   EXPECT_GT(processed, 0);
   EXPECT_EQ(SummaryField(run.summary, "imu_overflow"), 0);
   const double odom = SummaryField(run.summary, "odometry_published");

@@ -5,6 +5,7 @@
 
 #include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/cdr_payload.hpp"
+#include "ppf_dds_node/gap_counter.hpp"
 #include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/node_config.hpp"
 #include "ppf_dds_node/time_ordered_queue.hpp"
@@ -121,6 +122,20 @@ TEST(TimeOrderedQueue, BigJumpBackIsAppendedNotSortedIn) {
   EXPECT_EQ(out[1].second, 2);
   EXPECT_EQ(out[2].second, 4);
   EXPECT_EQ(out[3].second, 3);
+}
+
+TEST(GapCounter, CountsMissingSequenceNumbersPerWriter) {
+  GapCounter g;
+  eprosima::fastrtps::rtps::GUID_t a, b;
+  a.guidPrefix.value[0] = 1;
+  b.guidPrefix.value[0] = 2;
+  EXPECT_EQ(g.Count(a, 5), 0u);  // baseline: a late joiner does not count the past
+  EXPECT_EQ(g.Count(a, 6), 0u);
+  EXPECT_EQ(g.Count(a, 9), 2u);  // 7 and 8 never arrived
+  EXPECT_EQ(g.Count(b, 1), 0u);  // another writer, its own sequence
+  EXPECT_EQ(g.Count(b, 3), 1u);
+  EXPECT_EQ(g.Count(a, 8), 0u);  // late arrival of an older one: not a gap
+  EXPECT_EQ(g.Count(a, 10), 0u);
 }
 
 TEST(LatencyStats, NearestRankPercentiles) {

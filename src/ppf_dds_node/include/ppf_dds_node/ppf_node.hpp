@@ -34,6 +34,10 @@ struct NodeSummary {
   uint64_t imu_overflow = 0;  // evicted from the IMU queue (should never happen)
   uint64_t imu_out_of_order = 0;  // sorted back into time order (within 0.5 s)
   uint64_t time_jumps = 0;        // IMU or scan stamps jumping back > 0.5 s (bag loop)
+  // Gaps in the writers' sequence numbers: samples that never reached the listener (transport
+  // loss, or the reader history overwrote them while the listener was descheduled).
+  uint64_t scans_lost = 0;
+  uint64_t imu_lost = 0;
   double latency_p50_ms = 0, latency_p99_ms = 0, latency_max_ms = 0;
   double core_p50_ms = 0, core_p99_ms = 0;
   // overhead = latency - core - imu_wait - behind_core: the node's own cost (decode, hand-over,

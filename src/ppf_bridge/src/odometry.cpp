@@ -43,7 +43,8 @@ nav_msgs::msg::Odometry ToOdometryMsg(const ScanResult& result, const OdometryFr
   const int core_index[6] = {3, 4, 5, 0, 1, 2};
   auto& pc = odom.pose().covariance();
   for (int r = 0; r < 6; ++r) {
-    for (int c = 0; c < 6; ++c) pc[r * 6 + c] = result.pose_covariance(core_index[r], core_index[c]);
+    for (int c = 0; c < 6; ++c)
+      pc[r * 6 + c] = result.pose_covariance(core_index[r], core_index[c]);
   }
 
   // Twist in the child frame: v_imu = R_world_imu^T v_world.
@@ -55,8 +56,7 @@ nav_msgs::msg::Odometry ToOdometryMsg(const ScanResult& result, const OdometryFr
   odom.twist().twist().angular().x(angular_velocity_imu.x());
   odom.twist().twist().angular().y(angular_velocity_imu.y());
   odom.twist().twist().angular().z(angular_velocity_imu.z());
-  const Eigen::Matrix3d P_vv =
-      result.covariance.block<3, 3>(kVel, kVel);  // world frame
+  const Eigen::Matrix3d P_vv = result.covariance.block<3, 3>(kVel, kVel);  // world frame
   const Eigen::Matrix3d P_vv_imu = R_imu_world * P_vv * R_imu_world.transpose();
   auto& tc = odom.twist().covariance();
   tc.fill(0.0);

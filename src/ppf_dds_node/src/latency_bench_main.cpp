@@ -97,16 +97,26 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
-    if (a == "--scans") scans = std::atoi(next().c_str());
-    else if (a == "--rate") rate_hz = std::atof(next().c_str());
-    else if (a == "--rings") rings = std::atoi(next().c_str());
-    else if (a == "--columns") columns = std::atoi(next().c_str());
-    else if (a == "--node") node_exe = next();
-    else if (a == "--profiles") profiles = next();
-    else if (a == "--profile") profile = next();
-    else if (a == "--domain") domain = std::atoi(next().c_str());
-    else if (a == "--omp-wait-policy") omp_policy = next();
-    else if (a == "--node-nice") node_nice = std::atoi(next().c_str());
+    if (a == "--scans")
+      scans = std::atoi(next().c_str());
+    else if (a == "--rate")
+      rate_hz = std::atof(next().c_str());
+    else if (a == "--rings")
+      rings = std::atoi(next().c_str());
+    else if (a == "--columns")
+      columns = std::atoi(next().c_str());
+    else if (a == "--node")
+      node_exe = next();
+    else if (a == "--profiles")
+      profiles = next();
+    else if (a == "--profile")
+      profile = next();
+    else if (a == "--domain")
+      domain = std::atoi(next().c_str());
+    else if (a == "--omp-wait-policy")
+      omp_policy = next();
+    else if (a == "--node-nice")
+      node_nice = std::atoi(next().c_str());
     else {
       std::fprintf(stderr,
                    "usage: ppf_latency_bench [--scans N=100] [--rate HZ=10] [--rings 64] "
@@ -134,8 +144,8 @@ int main(int argc, char** argv) {
   if (node_nice != 0) {
     node_argv.insert(node_argv.begin(), {"/usr/bin/nice", "-n", std::to_string(node_nice)});
   }
-  if (!node.Start(node_argv, node_env, "/tmp/ppf_latency_bench_node_" +
-                                                      std::to_string(getpid()) + ".log")) {
+  if (!node.Start(node_argv, node_env,
+                  "/tmp/ppf_latency_bench_node_" + std::to_string(getpid()) + ".log")) {
     std::fprintf(stderr, "cannot start %s\n", node_exe.c_str());
     return 1;
   }
@@ -244,40 +254,44 @@ int main(int argc, char** argv) {
     return 1;
   }
 
-  std::printf("ppf_latency_bench: %d scans x %u points (%.1f MB, HDL-64 size) at %.0f Hz, "
-              "profile %s, OMP_WAIT_POLICY %s, node nice %d\n\n",
-              scans, cloud.width(), cloud_mb, rate_hz, profile.c_str(),
-              !omp_policy.empty()               ? omp_policy.c_str()
-              : std::getenv("OMP_WAIT_POLICY") ? std::getenv("OMP_WAIT_POLICY")
-                                                : "passive (node default)",
-              node_nice);
+  std::printf(
+      "ppf_latency_bench: %d scans x %u points (%.1f MB, HDL-64 size) at %.0f Hz, "
+      "profile %s, OMP_WAIT_POLICY %s, node nice %d\n\n",
+      scans, cloud.width(), cloud_mb, rate_hz, profile.c_str(),
+      !omp_policy.empty()              ? omp_policy.c_str()
+      : std::getenv("OMP_WAIT_POLICY") ? std::getenv("OMP_WAIT_POLICY")
+                                       : "passive (node default)",
+      node_nice);
   std::printf("| %-52s | %8s | %8s | %8s |\n", "metric (ms)", "p50", "p99", "max");
   std::printf("|%s|%s|%s|%s|\n", std::string(54, '-').c_str(), std::string(10, '-').c_str(),
               std::string(10, '-').c_str(), std::string(10, '-').c_str());
   std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n", "node overhead (latency - core - waits)",
               Field(summary, "overhead_p50_ms"), Field(summary, "overhead_p99_ms"),
               Field(summary, "overhead_max_ms"));
-  std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n", "node latency (DDS receive -> odometry published)",
-              Field(summary, "latency_p50_ms"), Field(summary, "latency_p99_ms"),
-              Field(summary, "latency_max_ms"));
+  std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n",
+              "node latency (DDS receive -> odometry published)", Field(summary, "latency_p50_ms"),
+              Field(summary, "latency_p99_ms"), Field(summary, "latency_max_ms"));
   std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "core time (decode + pipeline)",
               Field(summary, "core_p50_ms"), Field(summary, "core_p99_ms"), "");
   std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "  of which: listener take + CDR decode",
               Field(summary, "decode_p50_ms"), Field(summary, "decode_p99_ms"), "");
   std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "  of which: scan queue -> executor",
               Field(summary, "queue_p50_ms"), Field(summary, "queue_p99_ms"), "");
-  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "  of which: conversion + publishing all outputs",
-              Field(summary, "publish_p50_ms"), Field(summary, "publish_p99_ms"), "");
+  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n",
+              "  of which: conversion + publishing all outputs", Field(summary, "publish_p50_ms"),
+              Field(summary, "publish_p99_ms"), "");
   std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "scan queued behind the core (older scans)",
               Field(summary, "behind_core_p50_ms"), Field(summary, "behind_core_p99_ms"), "");
   std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "scan waiting in core for IMU coverage",
               Field(summary, "imu_wait_p50_ms"), Field(summary, "imu_wait_p99_ms"), "");
-  std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n", "end to end (bench write -> odometry received)",
-              e2e.Percentile(50), e2e.Percentile(99), e2e.Max());
-  std::printf("\nscans written %d, received %.0f, processed %.0f, odometry %.0f, dropped %.0f; "
-              "odometry matched here %zu\n",
-              scans, Field(summary, "scans_received"), Field(summary, "scans_processed"),
-              Field(summary, "odometry_published"), Field(summary, "scans_dropped"), e2e.count());
+  std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n",
+              "end to end (bench write -> odometry received)", e2e.Percentile(50),
+              e2e.Percentile(99), e2e.Max());
+  std::printf(
+      "\nscans written %d, received %.0f, processed %.0f, odometry %.0f, dropped %.0f; "
+      "odometry matched here %zu\n",
+      scans, Field(summary, "scans_received"), Field(summary, "scans_processed"),
+      Field(summary, "odometry_published"), Field(summary, "scans_dropped"), e2e.count());
   const double p99 = Field(summary, "overhead_p99_ms");
   std::printf("target node overhead p99 < 2 ms: %s\n", p99 < 2.0 ? "met" : "NOT met");
   return 0;

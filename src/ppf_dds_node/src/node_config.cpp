@@ -69,10 +69,10 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
     r.error = "node config must be a YAML map";
     return r;
   }
-  WarnUnknown(root, "",
-              {"dds", "topics", "frames", "qos", "outputs", "queues", "core", "trajectory",
-               "diagnostics"},
-              &r);
+  WarnUnknown(
+      root, "",
+      {"dds", "topics", "frames", "qos", "outputs", "queues", "core", "trajectory", "diagnostics"},
+      &r);
   auto section = [&](const char* name, const std::vector<std::string>& known) {
     YAML::Node s = root[name];
     if (s && !s.IsMap()) {
@@ -84,7 +84,8 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
     return s ? s : YAML::Node();
   };
 
-  YAML::Node dds = section("dds", {"domain_id", "profiles_file", "profile_name", "participant_name"});
+  YAML::Node dds =
+      section("dds", {"domain_id", "profiles_file", "profile_name", "participant_name"});
   if (dds) {
     Read(dds, "dds", "domain_id", &c->participant.domain_id, &r);
     Read(dds, "dds", "profiles_file", &c->participant.profiles_file, &r);
@@ -122,8 +123,8 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
     }
     Read(qos, "qos", "sensor_depth", &c->sensor_depth, &r);
   }
-  YAML::Node outputs = section("outputs", {"tf", "path", "path_max_poses", "skeleton_planes",
-                                           "registered_points"});
+  YAML::Node outputs =
+      section("outputs", {"tf", "path", "path_max_poses", "skeleton_planes", "registered_points"});
   if (outputs) {
     Read(outputs, "outputs", "tf", &c->publish_tf, &r);
     Read(outputs, "outputs", "path", &c->publish_path, &r);
@@ -144,8 +145,8 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
     if (!c->omp_wait_policy.empty() && c->omp_wait_policy != "passive" &&
         c->omp_wait_policy != "active") {
       r.ok = false;
-      r.error = "core.omp_wait_policy must be passive, active or \"\", not '" +
-                c->omp_wait_policy + "'";
+      r.error =
+          "core.omp_wait_policy must be passive, active or \"\", not '" + c->omp_wait_policy + "'";
     }
     if (!c->core_mode.empty() && c->core_mode != "knn" && c->core_mode != "ppf") {
       r.ok = false;

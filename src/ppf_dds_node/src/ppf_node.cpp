@@ -49,8 +49,8 @@ double MsBetween(Clock::time_point a, Clock::time_point b) {
 
 struct ScanItem {
   std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;
-  Clock::time_point received;  // listener entry, before the sample is taken and decoded
-  Clock::time_point queued;    // pushed into the scan queue
+  Clock::time_point received;         // listener entry, before the sample is taken and decoded
+  Clock::time_point queued;           // pushed into the scan queue
   int64_t core_busy_ns_at_queue = 0;  // Impl::core_busy_ns when queued
 };
 
@@ -61,9 +61,9 @@ struct ImuItem {
 // Per scan handed to the core, in AddScan order (the core returns results in input order).
 struct PendingScan {
   Clock::time_point received;
-  Clock::time_point added;  // AddScan returned
-  double decode_ms = 0.0;   // listener: take + CDR decode + checks
-  double queue_ms = 0.0;    // waiting in the scan queue for the executor
+  Clock::time_point added;      // AddScan returned
+  double decode_ms = 0.0;       // listener: take + CDR decode + checks
+  double queue_ms = 0.0;        // waiting in the scan queue for the executor
   double behind_core_ms = 0.0;  // part of queue_ms during which the executor ran the core
   double add_scan_ms = 0.0;
   std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;  // kept only for /registered_points
@@ -174,8 +174,9 @@ struct PpfNode::Impl {
         ReturnToPool(buffer.release());
         continue;
       }
-      if (const uint64_t missing = cloud_gaps.Count(info.sample_identity.writer_guid(),
-                                                    info.sample_identity.sequence_number().to64long())) {
+      if (const uint64_t missing =
+              cloud_gaps.Count(info.sample_identity.writer_guid(),
+                               info.sample_identity.sequence_number().to64long())) {
         {
           std::lock_guard<std::mutex> lock(stats_mutex);
           summary.scans_lost += missing;
@@ -201,8 +202,8 @@ struct PpfNode::Impl {
         }
         malformed_log.Log(Level::kWarn, "rejected malformed PointCloud2 on " +
                                             RosTopicToDds(config.points_topic) + " (" +
-                                            std::to_string(sample.payload_size) + " bytes): " +
-                                            error);
+                                            std::to_string(sample.payload_size) +
+                                            " bytes): " + error);
         ReturnToPool(buffer.release());
         continue;
       }
@@ -224,10 +225,10 @@ struct PpfNode::Impl {
           std::lock_guard<std::mutex> lock(stats_mutex);
           ++summary.scans_dropped;
         }
-        drop_log.Log(Level::kWarn, "core behind: dropped the oldest queued scan (stamp " +
-                                       std::to_string(bridge::ToSeconds(
-                                           pushed.evicted->msg->header().stamp())) +
-                                       ")");
+        drop_log.Log(Level::kWarn,
+                     "core behind: dropped the oldest queued scan (stamp " +
+                         std::to_string(bridge::ToSeconds(pushed.evicted->msg->header().stamp())) +
+                         ")");
       }
     }
   }
@@ -245,8 +246,9 @@ struct PpfNode::Impl {
       if (reader->take_next_sample(&sample, &info) != ReturnCode_t::RETCODE_OK) break;
       if (!info.valid_data) continue;
       if (!accepting.load()) continue;
-      if (const uint64_t missing = imu_gaps.Count(info.sample_identity.writer_guid(),
-                                                  info.sample_identity.sequence_number().to64long())) {
+      if (const uint64_t missing =
+              imu_gaps.Count(info.sample_identity.writer_guid(),
+                             info.sample_identity.sequence_number().to64long())) {
         uint64_t total;
         {
           std::lock_guard<std::mutex> lock(stats_mutex);
@@ -256,7 +258,8 @@ struct PpfNode::Impl {
         // Loud: the filter integrates every IMU sample (the core also sees the time gap).
         Log(Level::kError, "imu: " + std::to_string(missing) +
                                " sample(s) never reached the node (transport loss or reader "
-                               "history overwritten; total " + std::to_string(total) + ")");
+                               "history overwritten; total " +
+                               std::to_string(total) + ")");
       }
       std::string error = sample.error;
       std::optional<ImuSample> imu;
@@ -336,9 +339,8 @@ struct PpfNode::Impl {
     p.queue_ms = MsBetween(item.queued, t0);
     // Core time completed while this scan waited (a call already running when it was queued
     // counts whole, hence the min).
-    p.behind_core_ms =
-        std::min(p.queue_ms, 1e-6 * static_cast<double>(core_busy_ns.load() -
-                                                        item.core_busy_ns_at_queue));
+    p.behind_core_ms = std::min(
+        p.queue_ms, 1e-6 * static_cast<double>(core_busy_ns.load() - item.core_busy_ns_at_queue));
     p.added = Clock::now();
     p.add_scan_ms = MsBetween(t0, p.added);
     core_busy_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(p.added - t0).count();
@@ -553,7 +555,8 @@ struct PpfNode::Impl {
       ovh99 = overhead_ms.PercentileSince(*latency_mark, 99);
     }
     std::ostringstream o;
-    o << std::fixed << std::setprecision(2) << "status=" << (s.last_status.empty() ? "waiting" : s.last_status)
+    o << std::fixed << std::setprecision(2)
+      << "status=" << (s.last_status.empty() ? "waiting" : s.last_status)
       << " scans rx=" << s.scans_received << " proc=" << s.scans_processed
       << " odom=" << s.odometry_published << " dropped=" << s.scans_dropped
       << " malformed=" << s.scans_malformed + s.imu_malformed << " imu rx=" << s.imu_received
@@ -743,12 +746,12 @@ bool PpfNode::init(std::string* error) {
     *error = "cannot create input readers";
     return false;
   }
-  Log(Level::kInfo, "ppf_node up: domain " + std::to_string(c.participant.domain_id) + ", in " +
-                        RosTopicToDds(c.points_topic) + " + " + RosTopicToDds(c.imu_topic) + " (" +
-                        (c.sensor_reliability == Reliability::kBestEffort ? "best effort"
-                                                                          : "reliable") +
-                        "), out " + RosTopicToDds(c.odometry_topic) + " [" + c.odom_frame +
-                        " -> " + c.base_frame + "]");
+  Log(Level::kInfo,
+      "ppf_node up: domain " + std::to_string(c.participant.domain_id) + ", in " +
+          RosTopicToDds(c.points_topic) + " + " + RosTopicToDds(c.imu_topic) + " (" +
+          (c.sensor_reliability == Reliability::kBestEffort ? "best effort" : "reliable") +
+          "), out " + RosTopicToDds(c.odometry_topic) + " [" + c.odom_frame + " -> " +
+          c.base_frame + "]");
   return true;
 }
 
@@ -780,8 +783,8 @@ void PpfNode::run() {
   if (!m.config.tum_file.empty()) {
     std::string error;
     if (m.WriteTum(&error)) {
-      Log(Level::kInfo, "trajectory: " + std::to_string(m.trajectory.size()) + " poses -> " +
-                            m.config.tum_file);
+      Log(Level::kInfo,
+          "trajectory: " + std::to_string(m.trajectory.size()) + " poses -> " + m.config.tum_file);
     } else {
       Log(Level::kError, error);
     }
@@ -811,17 +814,16 @@ std::string PpfNode::FormatSummary(const NodeSummary& s) {
     << " imu_received=" << s.imu_received << " imu_malformed=" << s.imu_malformed
     << " imu_overflow=" << s.imu_overflow << " imu_out_of_order=" << s.imu_out_of_order
     << " time_jumps=" << s.time_jumps << " scans_lost=" << s.scans_lost
-    << " imu_lost=" << s.imu_lost
-    << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
-    << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
-    << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms
-    << " overhead_p99_ms=" << s.overhead_p99_ms << " overhead_max_ms=" << s.overhead_max_ms
-    << " imu_wait_p50_ms=" << s.imu_wait_p50_ms << " imu_wait_p99_ms=" << s.imu_wait_p99_ms
-    << " decode_p50_ms=" << s.decode_p50_ms << " decode_p99_ms=" << s.decode_p99_ms
-    << " queue_p50_ms=" << s.queue_p50_ms << " queue_p99_ms=" << s.queue_p99_ms
-    << " behind_core_p50_ms=" << s.behind_core_p50_ms
-    << " behind_core_p99_ms=" << s.behind_core_p99_ms
-    << " publish_p50_ms=" << s.publish_p50_ms << " publish_p99_ms=" << s.publish_p99_ms
+    << " imu_lost=" << s.imu_lost << " latency_p50_ms=" << s.latency_p50_ms
+    << " latency_p99_ms=" << s.latency_p99_ms << " latency_max_ms=" << s.latency_max_ms
+    << " core_p50_ms=" << s.core_p50_ms << " core_p99_ms=" << s.core_p99_ms
+    << " overhead_p50_ms=" << s.overhead_p50_ms << " overhead_p99_ms=" << s.overhead_p99_ms
+    << " overhead_max_ms=" << s.overhead_max_ms << " imu_wait_p50_ms=" << s.imu_wait_p50_ms
+    << " imu_wait_p99_ms=" << s.imu_wait_p99_ms << " decode_p50_ms=" << s.decode_p50_ms
+    << " decode_p99_ms=" << s.decode_p99_ms << " queue_p50_ms=" << s.queue_p50_ms
+    << " queue_p99_ms=" << s.queue_p99_ms << " behind_core_p50_ms=" << s.behind_core_p50_ms
+    << " behind_core_p99_ms=" << s.behind_core_p99_ms << " publish_p50_ms=" << s.publish_p50_ms
+    << " publish_p99_ms=" << s.publish_p99_ms
     << " last_status=" << (s.last_status.empty() ? "none" : s.last_status);
   return o.str();
 }

@@ -100,25 +100,26 @@ int main(int argc, char** argv) {
 
   const ppf::dds::NodeSummary s = node.summary();
   const std::string line = ppf::dds::PpfNode::FormatSummary(s);
-  Log(Level::kInfo, "summary: scans processed " + std::to_string(s.scans_processed) +
-                        ", dropped " + std::to_string(s.scans_dropped) + ", malformed " +
+  Log(Level::kInfo, "summary: scans processed " + std::to_string(s.scans_processed) + ", dropped " +
+                        std::to_string(s.scans_dropped) + ", malformed " +
                         std::to_string(s.scans_malformed + s.imu_malformed) +
                         "; latency/core/overhead p50-p99 ms in the SUMMARY line");
-  std::fprintf(stderr,
-               "ppf_node summary\n"
-               "  scans      received %llu  processed %llu  odometry %llu  dropped %llu  "
-               "malformed %llu  rejected %llu  initializing %llu  resets %llu\n"
-               "  imu        received %llu  malformed %llu  overflow %llu\n"
-               "  latency    p50 %.2f ms  p99 %.2f ms  (DDS receive -> odometry published)\n"
-               "  core       p50 %.2f ms  p99 %.2f ms\n"
-               "  overhead   p50 %.2f ms  p99 %.2f ms  (latency - core - waits for IMU / busy core)\n",
-               (unsigned long long)s.scans_received, (unsigned long long)s.scans_processed,
-               (unsigned long long)s.odometry_published, (unsigned long long)s.scans_dropped,
-               (unsigned long long)s.scans_malformed, (unsigned long long)s.scans_rejected,
-               (unsigned long long)s.scans_initializing, (unsigned long long)s.resets,
-               (unsigned long long)s.imu_received, (unsigned long long)s.imu_malformed,
-               (unsigned long long)s.imu_overflow, s.latency_p50_ms, s.latency_p99_ms,
-               s.core_p50_ms, s.core_p99_ms, s.overhead_p50_ms, s.overhead_p99_ms);
+  std::fprintf(
+      stderr,
+      "ppf_node summary\n"
+      "  scans      received %llu  processed %llu  odometry %llu  dropped %llu  "
+      "malformed %llu  rejected %llu  initializing %llu  resets %llu\n"
+      "  imu        received %llu  malformed %llu  overflow %llu\n"
+      "  latency    p50 %.2f ms  p99 %.2f ms  (DDS receive -> odometry published)\n"
+      "  core       p50 %.2f ms  p99 %.2f ms\n"
+      "  overhead   p50 %.2f ms  p99 %.2f ms  (latency - core - waits for IMU / busy core)\n",
+      (unsigned long long)s.scans_received, (unsigned long long)s.scans_processed,
+      (unsigned long long)s.odometry_published, (unsigned long long)s.scans_dropped,
+      (unsigned long long)s.scans_malformed, (unsigned long long)s.scans_rejected,
+      (unsigned long long)s.scans_initializing, (unsigned long long)s.resets,
+      (unsigned long long)s.imu_received, (unsigned long long)s.imu_malformed,
+      (unsigned long long)s.imu_overflow, s.latency_p50_ms, s.latency_p99_ms, s.core_p50_ms,
+      s.core_p99_ms, s.overhead_p50_ms, s.overhead_p99_ms);
   std::printf("PPF_NODE_SUMMARY %s\n", line.c_str());
   std::fflush(stdout);
   return 0;

@@ -71,7 +71,8 @@ class RecordListener : public fdds::DataReaderListener {
  public:
   RecordListener(Recorder* r, std::string topic) : recorder_(r), topic_(std::move(topic)) {}
   void on_data_available(fdds::DataReader* reader) override;
-  void on_subscription_matched(fdds::DataReader*, const fdds::SubscriptionMatchedStatus& s) override;
+  void on_subscription_matched(fdds::DataReader*,
+                               const fdds::SubscriptionMatchedStatus& s) override;
 
  private:
   Recorder* recorder_;
@@ -112,8 +113,8 @@ class Recorder : public fdds::DomainParticipantListener {
     if (info.status != eprosima::fastrtps::rtps::WriterDiscoveryInfo::DISCOVERED_WRITER) return;
     const std::string ros_topic = ppf::dds::DdsTopicToRos(info.info.topicName().to_string());
     const std::string dds_type = info.info.typeName().to_string();
-    const bool reliable = info.info.m_qos.m_reliability.kind ==
-                          eprosima::fastrtps::RELIABLE_RELIABILITY_QOS;
+    const bool reliable =
+        info.info.m_qos.m_reliability.kind == eprosima::fastrtps::RELIABLE_RELIABILITY_QOS;
     std::lock_guard<std::mutex> lock(mutex_);
     auto it = topics_.find(ros_topic);
     if (it == topics_.end() || subscriber_ == nullptr) return;
@@ -131,8 +132,8 @@ class Recorder : public fdds::DomainParticipantListener {
     }
     auto known = KnownTypes().find(ros_topic);
     if (known != KnownTypes().end() && known->second != ros_type) {
-      Log(Level::kWarn, ros_topic + ": discovered type " + ros_type + " differs from the usual " +
-                            known->second);
+      Log(Level::kWarn,
+          ros_topic + ": discovered type " + ros_type + " differs from the usual " + known->second);
     }
     // Entities are not created inside a discovery callback (Fast DDS holds discovery locks
     // here); the main loop creates them (CreatePending).
@@ -179,7 +180,8 @@ class Recorder : public fdds::DomainParticipantListener {
   }
 
  private:
-  void CreateReaderLocked(const std::string& ros_topic, const std::string& ros_type, bool reliable) {
+  void CreateReaderLocked(const std::string& ros_topic, const std::string& ros_type,
+                          bool reliable) {
     TopicState& st = topics_[ros_topic];
     if (st.reader_created) return;
     const std::string dds_type = ppf::dds::RosTypeToDds(ros_type);
@@ -197,8 +199,8 @@ class Recorder : public fdds::DomainParticipantListener {
     st.listener = std::make_unique<RecordListener>(this, ros_topic);
     fdds::DataReaderQos qos = ppf::dds::KeepAllReaderQos();
     if (!reliable) qos.reliability().kind = fdds::BEST_EFFORT_RELIABILITY_QOS;
-    fdds::DataReader* r = topic ? subscriber_->create_datareader(topic, qos, st.listener.get())
-                                : nullptr;
+    fdds::DataReader* r =
+        topic ? subscriber_->create_datareader(topic, qos, st.listener.get()) : nullptr;
     if (!r) {
       Log(Level::kError, "cannot create reader for " + ros_topic);
       return;
@@ -222,9 +224,11 @@ class Recorder : public fdds::DomainParticipantListener {
   std::vector<Pending> pending_;
 };
 
-void RecordListener::on_data_available(fdds::DataReader* reader) { recorder_->Store(topic_, reader); }
+void RecordListener::on_data_available(fdds::DataReader* reader) {
+  recorder_->Store(topic_, reader);
+}
 void RecordListener::on_subscription_matched(fdds::DataReader*,
-                                            const fdds::SubscriptionMatchedStatus& s) {
+                                             const fdds::SubscriptionMatchedStatus& s) {
   recorder_->Matched(topic_, s.current_count);
 }
 
@@ -315,8 +319,9 @@ int main(int argc, char** argv) {
 
   const auto t0 = std::chrono::steady_clock::now();
   while (!g_stop) {
-    if (duration_s > 0 && std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
-                                  .count() >= duration_s) {
+    if (duration_s > 0 &&
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() >=
+            duration_s) {
       break;
     }
     recorder.CreatePending();

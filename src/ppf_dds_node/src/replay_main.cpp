@@ -35,20 +35,21 @@ std::atomic<bool> g_stop{false};
 void OnSignal(int) { g_stop = true; }
 
 void Usage() {
-  std::fprintf(stderr,
-               "usage: ppf_replay --bag DIR [--rate R] [--loop] [--start SEC] [--topics T ...]\n"
-               "                  [--remap FROM:=TO ...] [--best-effort] [--depth N]\n"
-               "                  [--wait-matched SEC] [--domain ID] [--profiles XML] "
-               "[--profile NAME]\n"
-               "  --rate R          playback speed factor (default 1)\n"
-               "  --loop            start over at the end (until SIGINT)\n"
-               "  --start SEC       skip the first SEC seconds of the bag\n"
-               "  --topics T ...    only these topics (default: all)\n"
-               "  --remap F:=T      publish topic F as T\n"
-               "  --best-effort     best-effort writers (default reliable, which matches both\n"
-               "                    reliable and best-effort readers)\n"
-               "  --depth N         writer history depth per topic (default 50)\n"
-               "  --wait-matched S  before playing, wait up to S s until every writer has a reader\n");
+  std::fprintf(
+      stderr,
+      "usage: ppf_replay --bag DIR [--rate R] [--loop] [--start SEC] [--topics T ...]\n"
+      "                  [--remap FROM:=TO ...] [--best-effort] [--depth N]\n"
+      "                  [--wait-matched SEC] [--domain ID] [--profiles XML] "
+      "[--profile NAME]\n"
+      "  --rate R          playback speed factor (default 1)\n"
+      "  --loop            start over at the end (until SIGINT)\n"
+      "  --start SEC       skip the first SEC seconds of the bag\n"
+      "  --topics T ...    only these topics (default: all)\n"
+      "  --remap F:=T      publish topic F as T\n"
+      "  --best-effort     best-effort writers (default reliable, which matches both\n"
+      "                    reliable and best-effort readers)\n"
+      "  --depth N         writer history depth per topic (default 50)\n"
+      "  --wait-matched S  before playing, wait up to S s until every writer has a reader\n");
 }
 
 class MatchCounter : public fdds::DataWriterListener {

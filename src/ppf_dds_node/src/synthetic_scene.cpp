@@ -60,8 +60,8 @@ sensor_msgs::msg::PointCloud2 MakeRoomScan(const SyntheticLidar& lidar, int64_t 
     uint32_t offset;
     uint8_t type;
   };
-  const F fields[] = {{"x", 0, 7}, {"y", 4, 7}, {"z", 8, 7}, {"intensity", 12, 7}, {"t", 16, 7},
-                      {"ring", 20, 4}};
+  const F fields[] = {{"x", 0, 7},          {"y", 4, 7},  {"z", 8, 7},
+                      {"intensity", 12, 7}, {"t", 16, 7}, {"ring", 20, 4}};
   for (const F& f : fields) {
     sensor_msgs::msg::PointField pf;
     pf.name(f.name);
@@ -86,10 +86,10 @@ sensor_msgs::msg::PointCloud2 MakeRoomScan(const SyntheticLidar& lidar, int64_t 
     const double az = -2.0 * M_PI * c / lidar.columns;
     const float t = static_cast<float>(lidar.scan_period_s * c / lidar.columns);
     for (int r = 0; r < lidar.rings; ++r) {
-      const double el = (lidar.min_elevation_deg +
-                         (lidar.max_elevation_deg - lidar.min_elevation_deg) * r /
-                             std::max(1, lidar.rings - 1)) *
-                        M_PI / 180.0;
+      const double el =
+          (lidar.min_elevation_deg +
+           (lidar.max_elevation_deg - lidar.min_elevation_deg) * r / std::max(1, lidar.rings - 1)) *
+          M_PI / 180.0;
       const double dx = std::cos(el) * std::cos(az), dy = std::cos(el) * std::sin(az),
                    dz = std::sin(el);
       const double range = CastRay(dx, dy, dz);

@@ -152,7 +152,8 @@ inline bool ExitedWith(int status, int code) {
 
 // Domain id unique to this test process (ids above 232 overflow Fast DDS's port mapping).
 inline int TestDomainId(int salt = 0) {
-  return 1 + static_cast<int>((static_cast<unsigned>(getpid()) * 7u + static_cast<unsigned>(salt)) % 200u);
+  return 1 + static_cast<int>((static_cast<unsigned>(getpid()) * 7u + static_cast<unsigned>(salt)) %
+                              200u);
 }
 
 }  // namespace ppf::test

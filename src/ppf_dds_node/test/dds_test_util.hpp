@@ -46,7 +46,8 @@ class Collector : public fdds::DataReaderListener {
       samples_.push_back(msg);
     }
   }
-  void on_subscription_matched(fdds::DataReader*, const fdds::SubscriptionMatchedStatus& s) override {
+  void on_subscription_matched(fdds::DataReader*,
+                               const fdds::SubscriptionMatchedStatus& s) override {
     matched = s.current_count;
   }
   std::vector<MsgT> Samples() {

@@ -29,9 +29,13 @@ namespace {
 
 class DumpWriter {
  public:
-  explicit DumpWriter(const std::string& path) : out_(path, std::ios::binary) { out_.write("PPFDUMP1", 8); }
+  explicit DumpWriter(const std::string& path) : out_(path, std::ios::binary) {
+    out_.write("PPFDUMP1", 8);
+  }
   template <typename T>
-  void Pod(const T& v) { out_.write(reinterpret_cast<const char*>(&v), sizeof(T)); }
+  void Pod(const T& v) {
+    out_.write(reinterpret_cast<const char*>(&v), sizeof(T));
+  }
   void Str(const std::string& s) {
     Pod(static_cast<uint32_t>(s.size()));
     out_.write(s.data(), static_cast<std::streamsize>(s.size()));

@@ -66,8 +66,7 @@ size_t OdometryBagToTum(const std::string& bag, const std::string& tum, std::str
     const auto& p = o.pose().pose();
     out << ppf::bridge::ToSeconds(o.header().stamp()) << ' ' << p.position().x() << ' '
         << p.position().y() << ' ' << p.position().z() << ' ' << p.orientation().x() << ' '
-        << p.orientation().y() << ' ' << p.orientation().z() << ' ' << p.orientation().w()
-        << '\n';
+        << p.orientation().y() << ' ' << p.orientation().z() << ' ' << p.orientation().w() << '\n';
     ++n;
   }
   return n;
@@ -105,11 +104,11 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
         << "trajectory: {tum_file: \"" << dir << "/node.tum\"}\n"
         << extra_node_yaml;
   }
-  const std::vector<std::string> dds = {"--domain", dds_args, "--profiles", kProfiles,
-                                        "--profile", kProfile};
+  const std::vector<std::string> dds = {"--domain", dds_args,    "--profiles",
+                                        kProfiles,  "--profile", kProfile};
   ChildProcess record, node, replay;
-  std::vector<std::string> rec_args = {PPF_RECORD_EXE, "--topics", "/odometry", "/tf",
-                                       "--out", dir + "/rec", "--storage", "sqlite3"};
+  std::vector<std::string> rec_args = {PPF_RECORD_EXE, "--topics",   "/odometry", "/tf",
+                                       "--out",        dir + "/rec", "--storage", "sqlite3"};
   rec_args.insert(rec_args.end(), dds.begin(), dds.end());
   ASSERT_TRUE(record.Start(rec_args, {}, dir + "/record.log"));
   std::string line;
@@ -118,7 +117,7 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
   ASSERT_TRUE(record.WaitForLine("PPF_RECORD_MATCHED /odometry 1", &line, 20s));
 
-  std::vector<std::string> play_args = {PPF_REPLAY_EXE, "--bag", bag, "--rate",
+  std::vector<std::string> play_args = {PPF_REPLAY_EXE,       "--bag",          bag, "--rate",
                                         std::to_string(rate), "--wait-matched", "15"};
   play_args.insert(play_args.end(), dds.begin(), dds.end());
   ASSERT_TRUE(replay.Start(play_args, {}, dir + "/replay.log"));
@@ -143,8 +142,8 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   record.Signal(SIGINT);
   ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &out->record_done, 20s));
   EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
-  std::printf("%s\n%s\n%s\nnode max VmRSS %ld kB\n", out->replay_done.c_str(),
-              out->summary.c_str(), out->record_done.c_str(), out->max_rss_kb);
+  std::printf("%s\n%s\n%s\nnode max VmRSS %ld kB\n", out->replay_done.c_str(), out->summary.c_str(),
+              out->record_done.c_str(), out->max_rss_kb);
 }
 
 class EndToEnd : public ::testing::Test {
@@ -169,7 +168,8 @@ class EndToEnd : public ::testing::Test {
   static void TearDownTestSuite() {
     // The bags are large (~100 MB); logs and trajectories stay for inspection.
     if (!dir_.empty()) {
-      std::system(("rm -rf '" + dir_ + "/bag' '" + dir_ + "/rt/rec' '" + dir_ + "/x5/rec'").c_str());
+      std::system(
+          ("rm -rf '" + dir_ + "/bag' '" + dir_ + "/rt/rec' '" + dir_ + "/x5/rec'").c_str());
     }
   }
   static std::string sim_, eval_, offline_, dir_;
@@ -208,8 +208,7 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
             std::string::npos);
 
   std::string frames;
-  const size_t recorded =
-      OdometryBagToTum(dir + "/rec", dir + "/recorded.tum", &frames);
+  const size_t recorded = OdometryBagToTum(dir + "/rec", dir + "/recorded.tum", &frames);
   EXPECT_EQ(static_cast<double>(recorded), odom);
   EXPECT_EQ(frames, "odom->base_link");
 
@@ -224,19 +223,21 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
   double rmse = in_process.stats.rmse;
   if (!eval_.empty()) {
     ChildProcess eval;
-    ASSERT_TRUE(eval.Start({eval_, "ape", "--ref", dir_ + "/bag/groundtruth.tum", "--est",
-                            dir + "/recorded.tum"}));
+    ASSERT_TRUE(eval.Start(
+        {eval_, "ape", "--ref", dir_ + "/bag/groundtruth.tum", "--est", dir + "/recorded.tum"}));
     std::string line, all;
     while (eval.ReadLine(&line, 20s)) {
       all += line + "\n";
       const size_t p = line.find("rmse");
-      if (p != std::string::npos) rmse = std::atof(line.c_str() + line.find_first_of("0123456789", p));
+      if (p != std::string::npos)
+        rmse = std::atof(line.c_str() + line.find_first_of("0123456789", p));
     }
     EXPECT_TRUE(ppf::test::ExitedWith(eval.Wait(10s), 0));
     std::printf("ppf_eval ape:\n%s", all.c_str());
     EXPECT_NEAR(rmse, in_process.stats.rmse, 1e-3) << "ppf_eval disagrees with ComputeApe";
   } else {
-    std::printf("NOTE: ppf_eval not found; APE from ppf_core::ComputeApe (the code ppf_eval runs)\n");
+    std::printf(
+        "NOTE: ppf_eval not found; APE from ppf_core::ComputeApe (the code ppf_eval runs)\n");
   }
   const double percent = 100.0 * rmse / path;
   std::printf("APE rmse %.4f m over %zu poses on a %.2f m path = %.3f %% (bound 0.5 %%)\n", rmse,
@@ -249,10 +250,10 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
   // Fidelity: over DDS the node must compute what the core computes offline on the same bag.
   if (!offline_.empty()) {
     ChildProcess offline;
-    ASSERT_TRUE(offline.Start({offline_, "--bag", dir_ + "/bag", "--config",
-                               std::string(PPF_CONFIG_DIR) + "/hdl32.yaml", "--out",
-                               dir + "/offline.tum", "--quiet"},
-                              {}, dir + "/offline.log"));
+    ASSERT_TRUE(offline.Start(
+        {offline_, "--bag", dir_ + "/bag", "--config", std::string(PPF_CONFIG_DIR) + "/hdl32.yaml",
+         "--out", dir + "/offline.tum", "--quiet"},
+        {}, dir + "/offline.log"));
     ASSERT_TRUE(ppf::test::ExitedWith(offline.Wait(60s), 0));
     ppf::Trajectory off;
     ASSERT_TRUE(ppf::ReadTum(dir + "/offline.tum", &off, &error)) << error;

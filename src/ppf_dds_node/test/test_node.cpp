@@ -45,10 +45,17 @@ std::string TempDir() {
 
 bool AllFinite(const nav_msgs::msg::Odometry& o) {
   const auto& p = o.pose().pose();
-  double v[] = {p.position().x(), p.position().y(), p.position().z(), p.orientation().x(),
-                p.orientation().y(), p.orientation().z(), p.orientation().w(),
-                o.twist().twist().linear().x(), o.twist().twist().linear().y(),
-                o.twist().twist().linear().z(), o.twist().twist().angular().x()};
+  double v[] = {p.position().x(),
+                p.position().y(),
+                p.position().z(),
+                p.orientation().x(),
+                p.orientation().y(),
+                p.orientation().z(),
+                p.orientation().w(),
+                o.twist().twist().linear().x(),
+                o.twist().twist().linear().y(),
+                o.twist().twist().linear().z(),
+                o.twist().twist().angular().x()};
   for (double x : v) {
     if (!std::isfinite(x)) return false;
   }
@@ -107,34 +114,42 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   ASSERT_TRUE(driver.ok()) << driver.error;
   WriterMatches cloud_m, imu_m, bad_m;
   // Driver QoS: best effort, as most LiDAR/IMU drivers publish.
-  auto* cloud_w = driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
-                                ppf::dds::SensorWriterQos(ppf::dds::Reliability::kBestEffort, 20),
-                                &cloud_m);
-  auto* imu_w = driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
-                              ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 500),
-                              &imu_m);
+  auto* cloud_w =
+      driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
+                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kBestEffort, 20), &cloud_m);
+  auto* imu_w =
+      driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
+                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 500), &imu_m);
   Collector<nav_msgs::msg::Odometry> odom;
   Collector<tf2_msgs::msg::TFMessage> tf;
   Collector<nav_msgs::msg::Path> path;
   Collector<ppf_msgs::msg::SkeletonPlaneArray> planes;
   Collector<sensor_msgs::msg::PointCloud2> registered;
   ASSERT_NE(driver.Reader(new nav_msgs::msg::OdometryPubSubType(), "rt/odometry",
-                          ppf::dds::KeepAllReaderQos(), &odom), nullptr);
+                          ppf::dds::KeepAllReaderQos(), &odom),
+            nullptr);
   ASSERT_NE(driver.Reader(new tf2_msgs::msg::TFMessagePubSubType(), "rt/tf",
-                          ppf::dds::KeepAllReaderQos(), &tf), nullptr);
+                          ppf::dds::KeepAllReaderQos(), &tf),
+            nullptr);
   ASSERT_NE(driver.Reader(new nav_msgs::msg::PathPubSubType(), "rt/path",
-                          ppf::dds::DefaultReaderQos(10), &path), nullptr);
-  ASSERT_NE(driver.Reader(new ppf_msgs::msg::SkeletonPlaneArrayPubSubType(),
-                          "rt/skeleton_planes", ppf::dds::KeepAllReaderQos(), &planes), nullptr);
+                          ppf::dds::DefaultReaderQos(10), &path),
+            nullptr);
+  ASSERT_NE(driver.Reader(new ppf_msgs::msg::SkeletonPlaneArrayPubSubType(), "rt/skeleton_planes",
+                          ppf::dds::KeepAllReaderQos(), &planes),
+            nullptr);
   ASSERT_NE(driver.Reader(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/registered_points",
-                          ppf::dds::KeepAllReaderQos(), &registered), nullptr);
+                          ppf::dds::KeepAllReaderQos(), &registered),
+            nullptr);
   // Malformed payloads come from a second participant: same topic and type name, raw bytes.
   TestParticipant rogue(domain, kProfiles, kProfile, "test_rogue");
   auto* bad_w = rogue.Writer(new ppf::dds::RawPubSubType("sensor_msgs::msg::dds_::PointCloud2_"),
                              "rt/points", ppf::dds::KeepAllWriterQos(), &bad_m);
   ASSERT_TRUE(cloud_w && imu_w && bad_w);
-  ASSERT_TRUE(WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 &&
-                                     bad_m.matched > 0 && odom.matched > 0; }, 20s));
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        return cloud_m.matched > 0 && imu_m.matched > 0 && bad_m.matched > 0 && odom.matched > 0;
+      },
+      20s));
 
   // VLP-16-sized static room: 1.5 s of resting IMU for initialization, then 20 scans at 10 Hz.
   ppf::dds::SyntheticLidar lidar;
@@ -256,18 +271,19 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
   TestParticipant driver(domain, kProfiles, kProfile, "test_driver");
   ASSERT_TRUE(driver.ok()) << driver.error;
   WriterMatches cloud_m, imu_m;
-  auto* cloud_w = driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
-                                ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 50),
-                                &cloud_m);
-  auto* imu_w = driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
-                              ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 1000),
-                              &imu_m);
+  auto* cloud_w =
+      driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
+                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 50), &cloud_m);
+  auto* imu_w =
+      driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
+                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 1000), &imu_m);
   Collector<nav_msgs::msg::Odometry> odom;
   ASSERT_NE(driver.Reader(new nav_msgs::msg::OdometryPubSubType(), "rt/odometry",
-                          ppf::dds::KeepAllReaderQos(), &odom), nullptr);
+                          ppf::dds::KeepAllReaderQos(), &odom),
+            nullptr);
   ASSERT_TRUE(cloud_w && imu_w);
-  ASSERT_TRUE(WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 &&
-                                     odom.matched > 0; }, 20s));
+  ASSERT_TRUE(
+      WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 && odom.matched > 0; }, 20s));
   ppf::dds::SyntheticLidar lidar;
   lidar.rings = 16;
   lidar.columns = 1024;

@@ -167,8 +167,8 @@ TEST(DecodeCdrPayload, AgreesWithDecodeCdrOnValidAndMalformedPayloads) {
   bad_encapsulation[1] = 0x07;  // XCDR2: not what ROS 2 writes
   const std::vector<uint8_t> garbage = {0x00, 0x01, 0x00, 0x00, 0xff, 0xff, 0xff, 0x7f, 0x01};
   const std::vector<uint8_t> tiny = {0x00, 0x01};
-  const std::vector<const std::vector<uint8_t>*> cases = {&good,    &padded,  &truncated,
-                                                          &bad_encapsulation, &garbage, &tiny};
+  const std::vector<const std::vector<uint8_t>*> cases = {
+      &good, &padded, &truncated, &bad_encapsulation, &garbage, &tiny};
   for (const auto* bytes : cases) {
     eprosima::fastrtps::rtps::SerializedPayload_t payload(static_cast<uint32_t>(bytes->size()));
     std::copy(bytes->begin(), bytes->end(), payload.data);

@@ -6,8 +6,8 @@
 #include <unistd.h>
 
 #include <map>
-#include <thread>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "child_process.hpp"
@@ -100,8 +100,8 @@ std::string ReplayAndRecord(const std::string& bag, const std::string& out,
                             const std::vector<std::string>& replay_args, const std::string& storage,
                             int salt) {
   const std::string domain = std::to_string(ppf::test::TestDomainId(salt));
-  const std::vector<std::string> dds = {"--domain", domain, "--profiles", kProfiles, "--profile",
-                                        kProfile};
+  const std::vector<std::string> dds = {"--domain", domain,      "--profiles",
+                                        kProfiles,  "--profile", kProfile};
   std::vector<std::string> rec = {PPF_RECORD_EXE, "--out", out, "--storage", storage, "--topics"};
   rec.insert(rec.end(), topics.begin(), topics.end());
   rec.insert(rec.end(), dds.begin(), dds.end());
@@ -161,7 +161,8 @@ TEST_P(ReplayRecord, EveryPayloadComesBackByteForByteIncludingUnknownTypesAndRem
                      got.count("/points") ? got.at("/points") : std::vector<Stored>{}, "/points");
   // Replay keeps the recorded timing: the recording spans about the bag's 0.59 s.
   if (got.count("/imu") && got.at("/imu").size() > 1) {
-    const double span = 1e-9 * static_cast<double>(got.at("/imu").back().t - got.at("/imu").front().t);
+    const double span =
+        1e-9 * static_cast<double>(got.at("/imu").back().t - got.at("/imu").front().t);
     EXPECT_NEAR(span, 0.59, 0.25);
   }
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
@@ -190,7 +191,8 @@ TEST(ReplayRecordOptions, TopicFilterStartAndRate) {
   ASSERT_EQ(want.size(), 30u);
   ExpectSamePayloads(want, got.count("/imu") ? got.at("/imu") : std::vector<Stored>{}, "/imu");
   if (got.count("/imu") && got.at("/imu").size() > 1) {
-    const double span = 1e-9 * static_cast<double>(got.at("/imu").back().t - got.at("/imu").front().t);
+    const double span =
+        1e-9 * static_cast<double>(got.at("/imu").back().t - got.at("/imu").front().t);
     EXPECT_NEAR(span, 0.29 / 2, 0.12);
   }
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
@@ -203,17 +205,22 @@ TEST(ReplayRecordOptions, LoopUntilInterruptedAndExplicitTypes) {
   const int64_t t0 = 1700000000LL * 1000000000LL;
   const Topics written = MakeBag(dir + "/in", ppf::bag::Storage::kSqlite3, t0);
   const std::string domain = std::to_string(ppf::test::TestDomainId(34));
-  const std::vector<std::string> dds = {"--domain", domain, "--profiles", kProfiles, "--profile",
-                                        kProfile};
-  std::vector<std::string> rec = {PPF_RECORD_EXE, "--out", dir + "/out", "--topics", "/imu",
-                                  "--types", "/imu:=sensor_msgs/msg/Imu"};
+  const std::vector<std::string> dds = {"--domain", domain,      "--profiles",
+                                        kProfiles,  "--profile", kProfile};
+  std::vector<std::string> rec = {PPF_RECORD_EXE,
+                                  "--out",
+                                  dir + "/out",
+                                  "--topics",
+                                  "/imu",
+                                  "--types",
+                                  "/imu:=sensor_msgs/msg/Imu"};
   rec.insert(rec.end(), dds.begin(), dds.end());
   ChildProcess record, replay;
   ASSERT_TRUE(record.Start(rec, {}, dir + "/record.log"));
   std::string line;
   ASSERT_TRUE(record.WaitForLine("PPF_RECORD_READY", &line, 20s));
-  std::vector<std::string> play = {PPF_REPLAY_EXE, "--bag", dir + "/in", "--topics", "/imu",
-                                   "--loop", "--rate", "2", "--wait-matched", "15"};
+  std::vector<std::string> play = {PPF_REPLAY_EXE, "--bag",  dir + "/in", "--topics",       "/imu",
+                                   "--loop",       "--rate", "2",         "--wait-matched", "15"};
   play.insert(play.end(), dds.begin(), dds.end());
   ASSERT_TRUE(replay.Start(play, {}, dir + "/replay.log"));
   ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_START", &line, 20s));

@@ -56,7 +56,8 @@ class CloudListener : public fdds::DataReaderListener {
       tally_->last_cloud = seq;
     }
   }
-  void on_subscription_matched(fdds::DataReader*, const fdds::SubscriptionMatchedStatus& s) override {
+  void on_subscription_matched(fdds::DataReader*,
+                               const fdds::SubscriptionMatchedStatus& s) override {
     matched = s.current_count;
   }
   std::atomic<int> matched{0};
@@ -75,8 +76,8 @@ class ImuListener : public fdds::DataReaderListener {
       if (!info.valid_data) continue;
       const int seq = msg.header().stamp().sec() * 200 +
                       static_cast<int>(msg.header().stamp().nanosec() / 5000000u);
-      const bool intact = seq >= 0 && seq < ppf::test::kTransportImus &&
-                          msg == ppf::test::MakeTransportImu(seq);
+      const bool intact =
+          seq >= 0 && seq < ppf::test::kTransportImus && msg == ppf::test::MakeTransportImu(seq);
       std::lock_guard<std::mutex> lock(tally_->mutex);
       if (!intact) {
         ++tally_->corrupt;
@@ -87,7 +88,8 @@ class ImuListener : public fdds::DataReaderListener {
       tally_->last_imu = seq;
     }
   }
-  void on_subscription_matched(fdds::DataReader*, const fdds::SubscriptionMatchedStatus& s) override {
+  void on_subscription_matched(fdds::DataReader*,
+                               const fdds::SubscriptionMatchedStatus& s) override {
     matched = s.current_count;
   }
   std::atomic<int> matched{0};
@@ -133,8 +135,8 @@ int main(int argc, char** argv) {
   fdds::Subscriber* sub = participant->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
   fdds::Topic* cloud_topic = participant->create_topic(
       "rt/ppf_test/points", cloud_type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
-  fdds::Topic* imu_topic =
-      participant->create_topic("rt/ppf_test/imu", imu_type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+  fdds::Topic* imu_topic = participant->create_topic("rt/ppf_test/imu", imu_type.get_type_name(),
+                                                     fdds::TOPIC_QOS_DEFAULT);
   Tally tally;
   CloudListener cloud_listener(&tally);
   ImuListener imu_listener(&tally);

@@ -31,7 +31,7 @@ struct NodeSummary {
   uint64_t odometry_published = 0;
   uint64_t imu_received = 0;
   uint64_t imu_malformed = 0;
-  uint64_t imu_overflow = 0;  // evicted from the IMU queue (should never happen)
+  uint64_t imu_overflow = 0;      // evicted from the IMU queue (should never happen)
   uint64_t imu_out_of_order = 0;  // sorted back into time order (within 0.5 s)
   uint64_t time_jumps = 0;        // IMU or scan stamps jumping back > 0.5 s (bag loop)
   // Gaps in the writers' sequence numbers: samples that never reached the listener (transport
@@ -47,7 +47,7 @@ struct NodeSummary {
   double decode_p50_ms = 0, decode_p99_ms = 0;      // listener: take + CDR decode + checks
   double queue_p50_ms = 0, queue_p99_ms = 0;        // scan queue -> executor
   double behind_core_p50_ms = 0, behind_core_p99_ms = 0;  // of queue: core busy with older scans
-  double publish_p50_ms = 0, publish_p99_ms = 0;    // result -> all outputs written
+  double publish_p50_ms = 0, publish_p99_ms = 0;          // result -> all outputs written
   std::string last_status;
 };
 

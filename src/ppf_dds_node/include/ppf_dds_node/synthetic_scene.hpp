@@ -12,7 +12,7 @@ namespace ppf::dds {
 
 struct SyntheticLidar {
   int rings = 64;
-  int columns = 2048;            // 64 x 2048 = 131072 points (HDL-64 at 10 Hz: ~130k)
+  int columns = 2048;  // 64 x 2048 = 131072 points (HDL-64 at 10 Hz: ~130k)
   double min_elevation_deg = -24.9;
   double max_elevation_deg = 2.0;
   double scan_period_s = 0.1;

@@ -25,9 +25,9 @@ class TimeOrderedQueue {
       : capacity_(capacity == 0 ? 1 : capacity), reorder_window_s_(reorder_window_s) {}
 
   struct PushResult {
-    std::optional<T> evicted;  // the oldest item, if the queue was full
-    bool out_of_order = false; // inserted before items already queued
-    bool time_jump = false;    // older than the newest queued item by more than the window
+    std::optional<T> evicted;   // the oldest item, if the queue was full
+    bool out_of_order = false;  // inserted before items already queued
+    bool time_jump = false;     // older than the newest queued item by more than the window
   };
 
   // Inserts by `stamp` (stable for equal stamps). Returns the evicted item, if any.

@@ -6,8 +6,8 @@
 
 #include <string>
 
-#include <fastdds/dds/topic/TopicDataType.hpp>
 #include <fastdds/rtps/common/SerializedPayload.h>
+#include <fastdds/dds/topic/TopicDataType.hpp>
 
 #include "ppf_bridge/cdr_payload.hpp"
 #include "ppf_bridge/msg_traits.hpp"

@@ -72,12 +72,22 @@ static void drain(dds_entity_t odom_reader, dds_entity_t planes_reader, tally_t*
       if (!infos[i].valid_data) continue;
       const nav_msgs_msg_dds__Odometry_* o = (const nav_msgs_msg_dds__Odometry_*)samples[i];
       const geometry_msgs_msg_dds__Pose_* p = &o->pose.pose;
-      double v[13] = {p->position.x, p->position.y, p->position.z, p->orientation.x,
-                      p->orientation.y, p->orientation.z, p->orientation.w,
-                      o->twist.twist.linear.x, o->twist.twist.linear.y, o->twist.twist.linear.z,
-                      o->twist.twist.angular.x, o->twist.twist.angular.y, o->twist.twist.angular.z};
-      const double qn = sqrt(p->orientation.x * p->orientation.x + p->orientation.y * p->orientation.y +
-                             p->orientation.z * p->orientation.z + p->orientation.w * p->orientation.w);
+      double v[13] = {p->position.x,
+                      p->position.y,
+                      p->position.z,
+                      p->orientation.x,
+                      p->orientation.y,
+                      p->orientation.z,
+                      p->orientation.w,
+                      o->twist.twist.linear.x,
+                      o->twist.twist.linear.y,
+                      o->twist.twist.linear.z,
+                      o->twist.twist.angular.x,
+                      o->twist.twist.angular.y,
+                      o->twist.twist.angular.z};
+      const double qn =
+          sqrt(p->orientation.x * p->orientation.x + p->orientation.y * p->orientation.y +
+               p->orientation.z * p->orientation.z + p->orientation.w * p->orientation.w);
       t->odom++;
       if (!finite_n(v, 13) || !finite_n(o->pose.covariance, 36) ||
           !finite_n(o->twist.covariance, 36) || fabs(qn - 1.0) > 1e-6) {
@@ -133,9 +143,11 @@ int main(int argc, char** argv) {
     fprintf(stderr, "cyclone_peer: dds_create_participant: %s\n", dds_strretcode(-pp));
     return 1;
   }
-  dds_entity_t t_points = dds_create_topic(pp, &sensor_msgs_msg_dds__PointCloud2__desc, "rt/points", NULL, NULL);
+  dds_entity_t t_points =
+      dds_create_topic(pp, &sensor_msgs_msg_dds__PointCloud2__desc, "rt/points", NULL, NULL);
   dds_entity_t t_imu = dds_create_topic(pp, &sensor_msgs_msg_dds__Imu__desc, "rt/imu", NULL, NULL);
-  dds_entity_t t_odom = dds_create_topic(pp, &nav_msgs_msg_dds__Odometry__desc, "rt/odometry", NULL, NULL);
+  dds_entity_t t_odom =
+      dds_create_topic(pp, &nav_msgs_msg_dds__Odometry__desc, "rt/odometry", NULL, NULL);
   dds_entity_t t_planes = dds_create_topic(pp, &ppf_msgs_msg_dds__SkeletonPlaneArray__desc,
                                            "rt/skeleton_planes", NULL, NULL);
   if (t_points < 0 || t_imu < 0 || t_odom < 0 || t_planes < 0) {
@@ -221,8 +233,10 @@ int main(int argc, char** argv) {
       m.orientation.y = q[1];
       m.orientation.z = q[2];
       m.orientation.w = q[3];
-      if (dds_write(w_imu, &m) < 0) write_errors++;
-      else sent_imu++;
+      if (dds_write(w_imu, &m) < 0)
+        write_errors++;
+      else
+        sent_imu++;
     } else if (kind == 2) {
       sensor_msgs_msg_dds__PointCloud2_ m;
       memset(&m, 0, sizeof(m));
@@ -254,8 +268,10 @@ int main(int argc, char** argv) {
         m.data._length = m.data._maximum = nbytes;
         m.data._release = false;
         m.is_dense = dense != 0;
-        if (dds_write(w_points, &m) < 0) write_errors++;
-        else sent_scans++;
+        if (dds_write(w_points, &m) < 0)
+          write_errors++;
+        else
+          sent_scans++;
       }
       for (uint32_t i = 0; i < nfields; ++i) free(fields[i].name);
       free(fields);
@@ -285,10 +301,11 @@ int main(int argc, char** argv) {
       last_change = now_ns();
     }
   }
-  printf("RESULT sent_scans=%d sent_imu=%d write_errors=%d odom=%d odom_bad=%d odom_frames_bad=%d "
-         "odom_not_monotonic=%d planes=%d planes_bad=%d planes_total=%d\n",
-         sent_scans, sent_imu, write_errors, t.odom, t.odom_bad, t.odom_frames_bad,
-         t.odom_not_monotonic, t.planes, t.planes_bad, t.planes_total);
+  printf(
+      "RESULT sent_scans=%d sent_imu=%d write_errors=%d odom=%d odom_bad=%d odom_frames_bad=%d "
+      "odom_not_monotonic=%d planes=%d planes_bad=%d planes_total=%d\n",
+      sent_scans, sent_imu, write_errors, t.odom, t.odom_bad, t.odom_frames_bad,
+      t.odom_not_monotonic, t.planes, t.planes_bad, t.planes_total);
   fflush(stdout);
   dds_delete(pp);
   return 0;

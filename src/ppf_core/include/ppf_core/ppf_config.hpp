@@ -69,7 +69,8 @@ struct PpfConfig {
   // Stop fitting once fewer than this fraction of the input points remain.
   double min_remaining_ratio = 0.25;
   // Incremental fitting: try the window planes moved by the IMU-predicted motion before RANSAC.
-  // Paper: worth it for >= 64 beams (~6 ms -> ~1.5 ms), off for 16/32 beams.
+  // Paper: worth it for >= 64 beams (~6 ms -> ~1.5 ms). PpfConfigForBeams() enables it from 32
+  // beams up (measured, see ppf_config.cpp); this plain default is the 16-beam one (off).
   bool incremental_fitting = false;
 
   // --- RANSAC ----------------------------------------------------------------------------------

@@ -287,15 +287,19 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
   for (size_t i = 0; i < n; ++i) {
     const uint8_t* p = point_ptr(i);
     TimedPoint tp;
-    tp.p = Eigen::Vector3f(static_cast<float>(ReadAs(p + fx->offset, fx->type)),
-                           static_cast<float>(ReadAs(p + fy->offset, fy->type)),
-                           static_cast<float>(ReadAs(p + fz->offset, fz->type)));
+    const Eigen::Vector3d xyz(ReadAs(p + fx->offset, fx->type), ReadAs(p + fy->offset, fy->type),
+                              ReadAs(p + fz->offset, fz->type));
     tp.t = ft ? base + raw_t[i] * scale : cloud.stamp_s;
-    if (!tp.p.allFinite() || !std::isfinite(tp.t)) {
+    // float64 coordinates beyond float range would overflow the conversion: treat as invalid.
+    if (!xyz.allFinite() || xyz.cwiseAbs().maxCoeff() > 1e30 || !std::isfinite(tp.t)) {
       ++out->dropped_nan;
       continue;
     }
-    if (fi) tp.intensity = static_cast<float>(ReadAs(p + fi->offset, fi->type));
+    tp.p = xyz.cast<float>();
+    if (fi) {
+      const double v = ReadAs(p + fi->offset, fi->type);
+      tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
+    }
     out->points.push_back(tp);
   }
 

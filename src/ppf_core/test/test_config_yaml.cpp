@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <random>
 
 #include "ppf_core/config_yaml.hpp"
 
@@ -124,6 +125,29 @@ knn: {k: 1}
   EXPECT_GE(c.map.resolution, 0.05);
   EXPECT_GE(c.iekf.max_iterations, 1);
   EXPECT_GE(c.knn.k, 3);
+}
+
+TEST(ConfigYaml, FuzzedDocumentsNeverThrow) {
+  // Mutations of a valid document: every outcome is ok or a clean error, never an exception.
+  const std::string base =
+      "mode: knn\npreprocess: {min_range: 0.5, max_range: 100}\nmap: {nearby: 19}\n"
+      "imu: {acc_scale: 0}\nextrinsic: {T_imu_lidar: {translation: [0, 0, 0]}}\n";
+  const std::string alphabet = "{}[]:,- \n\t\"'#&*!|>%@`abc019.e";
+  std::mt19937 rng(99);
+  for (int iter = 0; iter < 2000; ++iter) {
+    std::string doc = base;
+    const int edits = 1 + static_cast<int>(rng() % 4);
+    for (int e = 0; e < edits; ++e) {
+      const size_t at = rng() % doc.size();
+      doc[at] = alphabet[rng() % alphabet.size()];
+    }
+    Config c;
+    ConfigLoadReport r;
+    EXPECT_NO_THROW(r = LoadConfigYamlString(doc, &c)) << doc;
+    if (!r.ok) {
+      EXPECT_FALSE(r.error.empty());
+    }
+  }
 }
 
 TEST(ConfigYaml, NullValueKeepsDefault) {

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <random>
 
 #include "ppf_core/time_field.hpp"
 #include "synthetic.hpp"
@@ -246,6 +247,57 @@ TEST(TimeField, NanPointsDroppedAndCounted) {
   EXPECT_EQ(scan.dropped_nan, 2u);
   EXPECT_EQ(scan.points.size(), pts.size() - 2);
   EXPECT_EQ(scan.input_points, pts.size());
+}
+
+// Random layouts and bytes: Decode either rejects or returns finite points, never reads outside
+// the buffer (run under -fsanitize=address to check the latter).
+TEST(TimeField, FuzzedLayoutsNeverCrash) {
+  std::mt19937 rng(1234);
+  std::uniform_int_distribution<int> byte(0, 255), small(0, 40), type(0, 9), count(0, 64);
+  const char* names[] = {"x", "y", "z", "t", "time", "timestamp", "intensity", "offset_time"};
+  size_t accepted = 0;
+  for (int iter = 0; iter < 3000; ++iter) {
+    CloudView v;
+    v.stamp_s = (iter % 3 == 0) ? 1.7e9 : 0.5 * iter;
+    v.width = static_cast<uint32_t>(count(rng));
+    v.height = static_cast<uint32_t>(1 + iter % 3);
+    v.point_step = static_cast<uint32_t>(small(rng));
+    v.row_step = (iter % 4 == 0) ? 0 : v.width * v.point_step + static_cast<uint32_t>(small(rng) % 5);
+    v.is_bigendian = (iter % 50 == 0);
+    const int nfields = 1 + small(rng) % 6;
+    for (int f = 0; f < nfields; ++f) {
+      v.fields.push_back({names[(f + iter) % 8], static_cast<uint32_t>(small(rng)),
+                          static_cast<FieldType>(type(rng)), 1});
+    }
+    if (iter % 2 == 0) {  // a plausible layout with random details, so some clouds are valid
+      v.fields = {{"x", 0, FieldType::kFloat32, 1},
+                  {"y", 4, FieldType::kFloat32, 1},
+                  {"z", 8, FieldType::kFloat32, 1},
+                  {names[3 + iter % 5], 12, static_cast<FieldType>(1 + type(rng) % 8), 1}};
+      v.point_step = 12 + static_cast<uint32_t>(small(rng) % 12);
+      v.row_step = v.width * v.point_step;
+    }
+    size_t nbytes = static_cast<size_t>(small(rng)) * static_cast<size_t>(count(rng));
+    if (iter % 4 == 0) nbytes = static_cast<size_t>(v.height) * v.width * v.point_step;
+    std::vector<uint8_t> bytes(nbytes);
+    for (auto& b : bytes) b = static_cast<uint8_t>(byte(rng));
+    v.data = bytes.empty() ? nullptr : bytes.data();
+    v.size = bytes.size();
+    TimeFieldDecoder decoder;
+    DecodedScan scan;
+    std::string error;
+    if (decoder.Decode(v, &scan, &error)) {
+      ++accepted;
+      for (const TimedPoint& p : scan.points) {
+        ASSERT_TRUE(p.p.allFinite());
+        ASSERT_TRUE(std::isfinite(p.t));
+      }
+      EXPECT_EQ(scan.points.size() + scan.dropped_nan, scan.input_points);
+    } else {
+      EXPECT_FALSE(error.empty());
+    }
+  }
+  EXPECT_GT(accepted, 0u);  // the generator also produces valid clouds
 }
 
 TEST(TimeField, EmptyCloudIsValid) {

@@ -55,7 +55,7 @@ struct DecodedScan {
   double t_begin = 0.0;            // min point time (header stamp if no points)
   double t_end = 0.0;              // max point time
   size_t input_points = 0;         // width * height
-  size_t dropped_nan = 0;          // non-finite coordinates or time
+  size_t dropped_nan = 0;          // non-finite (or |coordinate| > 1e30) coordinates or time
   bool has_time_field = false;
   bool times_estimated = false;    // azimuth estimate used
   std::string note;                // e.g. "no time field: times estimated from azimuth"

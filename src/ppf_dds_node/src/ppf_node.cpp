@@ -6,6 +6,7 @@
 #include <deque>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <sstream>
@@ -304,29 +305,81 @@ struct PpfNode::Impl {
       // IMU first: a scan can only be processed once IMU covers its end.
       std::deque<std::pair<double, ImuItem>> imus;
       imu_queue.PopAll(&imus);
-      for (auto& [stamp, item] : imus) {
-        (void)stamp;
-        core->AddImu(item.sample);
-        last_gyro = item.sample.angular_velocity;
-      }
+      for (auto& [stamp, item] : imus) FeedImu(item.sample);
       if (!imus.empty() && !pending.empty()) RunCore(false);
       while (auto scan = scan_queue.PopFront()) {
-        AddScan(std::move(scan->second));
-        RunCore(false);
+        if (AcceptScanStamp(scan->first)) {
+          AddScan(std::move(scan->second));
+          RunCore(false);
+        }
         // IMU that arrived while the core worked: feed it before the next scan.
         imus.clear();
         imu_queue.PopAll(&imus);
-        for (auto& [stamp, item] : imus) {
-          (void)stamp;
-          core->AddImu(item.sample);
-          last_gyro = item.sample.angular_velocity;
-        }
+        for (auto& [stamp, item] : imus) FeedImu(item.sample);
       }
       if (draining && scan_queue.Size() == 0 && imu_queue.Size() == 0) {
         if (!pending.empty()) RunCore(true);  // remaining scans, IMU extrapolated
         break;
       }
     }
+  }
+
+  // Time jumps back (a bag replayed in a loop, a clock reset) restart the core once, cleanly:
+  // scans of the old timeline still in the core are flushed first, then both streams start over
+  // together. (Left to the core, the IMU jump and the scan jump would each reset it, and the
+  // second reset would throw away the initialization the first one had begun.) A sample only
+  // slightly older than what the core already has (< 0.5 s, e.g. from a second publisher) is
+  // dropped, counted and logged instead of resetting the filter.
+  static constexpr double kJumpS = 0.5;
+
+  void RestartCore(const std::string& why) {
+    if (!pending.empty()) RunCore(true);
+    core->Reset();
+    last_imu_fed = last_scan_fed = -std::numeric_limits<double>::infinity();
+    {
+      std::lock_guard<std::mutex> lock(stats_mutex);
+      ++summary.resets;
+    }
+    // Not rate limited: restarts are rare and each one matters.
+    Log(Level::kWarn, why + ": core restarted (initialization starts over)");
+  }
+
+  void FeedImu(const ImuSample& s) {
+    if (s.stamp_s < last_imu_fed - kJumpS) {
+      // Scans of the old timeline still queued (IMU is fed before scans) are finished first.
+      while (auto old =
+                 scan_queue.PopFrontIf([&](double stamp) { return stamp > s.stamp_s + kJumpS; })) {
+        if (AcceptScanStamp(old->first)) AddScan(std::move(old->second));
+      }
+      RestartCore("IMU time jumped back by " + std::to_string(last_imu_fed - s.stamp_s) + " s");
+    } else if (s.stamp_s <= last_imu_fed) {
+      {
+        std::lock_guard<std::mutex> lock(stats_mutex);
+        ++summary.imu_late;
+      }
+      Log(Level::kError, "IMU sample at " + std::to_string(s.stamp_s) +
+                             " arrived after newer ones were integrated: dropped");
+      return;
+    }
+    core->AddImu(s);
+    last_imu_fed = s.stamp_s;
+    last_gyro = s.angular_velocity;
+  }
+
+  bool AcceptScanStamp(double stamp) {
+    if (stamp < last_scan_fed - kJumpS) {
+      RestartCore("scan time jumped back by " + std::to_string(last_scan_fed - stamp) + " s");
+    } else if (stamp <= last_scan_fed) {
+      {
+        std::lock_guard<std::mutex> lock(stats_mutex);
+        ++summary.scans_late;
+      }
+      late_log.Log(Level::kWarn, "scan at " + std::to_string(stamp) +
+                                     " is not newer than the last processed one: dropped");
+      return false;
+    }
+    last_scan_fed = stamp;
+    return true;
   }
 
   void AddScan(ScanItem item) {
@@ -600,6 +653,8 @@ struct PpfNode::Impl {
   std::condition_variable stop_cv;
 
   // Executor-thread state.
+  double last_imu_fed = -std::numeric_limits<double>::infinity();
+  double last_scan_fed = -std::numeric_limits<double>::infinity();
   std::deque<PendingScan> pending;
   Eigen::Vector3d last_gyro = Eigen::Vector3d::Zero();
   nav_msgs::msg::Path path;
@@ -610,6 +665,7 @@ struct PpfNode::Impl {
   RateLimitedLog status_log{1.0};
   RateLimitedLog jump_log{1.0};
   RateLimitedLog lost_log{1.0};
+  RateLimitedLog late_log{1.0};
   GapCounter cloud_gaps, imu_gaps;  // each used by its reader's listener only
 
   mutable std::mutex stats_mutex;
@@ -813,15 +869,16 @@ std::string PpfNode::FormatSummary(const NodeSummary& s) {
     << " resets=" << s.resets << " degenerate=" << s.degenerate
     << " imu_received=" << s.imu_received << " imu_malformed=" << s.imu_malformed
     << " imu_overflow=" << s.imu_overflow << " imu_out_of_order=" << s.imu_out_of_order
-    << " time_jumps=" << s.time_jumps << " scans_lost=" << s.scans_lost
-    << " imu_lost=" << s.imu_lost << " latency_p50_ms=" << s.latency_p50_ms
-    << " latency_p99_ms=" << s.latency_p99_ms << " latency_max_ms=" << s.latency_max_ms
-    << " core_p50_ms=" << s.core_p50_ms << " core_p99_ms=" << s.core_p99_ms
-    << " overhead_p50_ms=" << s.overhead_p50_ms << " overhead_p99_ms=" << s.overhead_p99_ms
-    << " overhead_max_ms=" << s.overhead_max_ms << " imu_wait_p50_ms=" << s.imu_wait_p50_ms
-    << " imu_wait_p99_ms=" << s.imu_wait_p99_ms << " decode_p50_ms=" << s.decode_p50_ms
-    << " decode_p99_ms=" << s.decode_p99_ms << " queue_p50_ms=" << s.queue_p50_ms
-    << " queue_p99_ms=" << s.queue_p99_ms << " behind_core_p50_ms=" << s.behind_core_p50_ms
+    << " time_jumps=" << s.time_jumps << " scans_late=" << s.scans_late
+    << " imu_late=" << s.imu_late << " scans_lost=" << s.scans_lost << " imu_lost=" << s.imu_lost
+    << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
+    << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
+    << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms
+    << " overhead_p99_ms=" << s.overhead_p99_ms << " overhead_max_ms=" << s.overhead_max_ms
+    << " imu_wait_p50_ms=" << s.imu_wait_p50_ms << " imu_wait_p99_ms=" << s.imu_wait_p99_ms
+    << " decode_p50_ms=" << s.decode_p50_ms << " decode_p99_ms=" << s.decode_p99_ms
+    << " queue_p50_ms=" << s.queue_p50_ms << " queue_p99_ms=" << s.queue_p99_ms
+    << " behind_core_p50_ms=" << s.behind_core_p50_ms
     << " behind_core_p99_ms=" << s.behind_core_p99_ms << " publish_p50_ms=" << s.publish_p50_ms
     << " publish_p99_ms=" << s.publish_p99_ms
     << " last_status=" << (s.last_status.empty() ? "none" : s.last_status);

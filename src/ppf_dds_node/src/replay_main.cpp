@@ -39,7 +39,7 @@ void Usage() {
       stderr,
       "usage: ppf_replay --bag DIR [--rate R] [--loop] [--start SEC] [--topics T ...]\n"
       "                  [--remap FROM:=TO ...] [--best-effort] [--depth N]\n"
-      "                  [--wait-matched SEC] [--domain ID] [--profiles XML] "
+      "                  [--wait-matched SEC] [--linger SEC] [--domain ID] [--profiles XML] "
       "[--profile NAME]\n"
       "  --rate R          playback speed factor (default 1)\n"
       "  --loop            start over at the end (until SIGINT)\n"
@@ -49,7 +49,9 @@ void Usage() {
       "  --best-effort     best-effort writers (default reliable, which matches both\n"
       "                    reliable and best-effort readers)\n"
       "  --depth N         writer history depth per topic (default 50)\n"
-      "  --wait-matched S  before playing, wait up to S s until every writer has a reader\n");
+      "  --wait-matched S  before playing, wait up to S s until every writer has a reader\n"
+      "  --linger S        keep the writers S s after the last message (default 1) so\n"
+      "                    best-effort readers take the tail before the writers leave\n");
 }
 
 class MatchCounter : public fdds::DataWriterListener {
@@ -72,7 +74,7 @@ struct TopicOut {
 
 int main(int argc, char** argv) {
   std::string bag_dir;
-  double rate = 1.0, start_s = 0.0, wait_matched_s = 0.0;
+  double rate = 1.0, start_s = 0.0, wait_matched_s = 0.0, linger_s = 1.0;
   bool loop = false, best_effort = false;
   int depth = 50;
   std::vector<std::string> topics;
@@ -95,6 +97,8 @@ int main(int argc, char** argv) {
       depth = std::max(1, std::atoi(argv[++i]));
     } else if (a == "--wait-matched" && i + 1 < argc) {
       wait_matched_s = std::atof(argv[++i]);
+    } else if (a == "--linger" && i + 1 < argc) {
+      linger_s = std::max(0.0, std::atof(argv[++i]));
     } else if (a == "--topics") {
       topics = ppf::dds::TakeList(argc, argv, &i);
     } else if (a == "--remap") {
@@ -180,6 +184,10 @@ int main(int argc, char** argv) {
       if (!all) std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
     if (!all) Log(Level::kWarn, "not every topic has a subscriber; playing anyway");
+    // Our writer matching a reader does not mean that reader has matched our writer yet (the
+    // two directions of discovery complete independently); a sample sent in between is ignored
+    // by the reader. Give the other direction a moment.
+    if (all) std::this_thread::sleep_for(std::chrono::milliseconds(500));
   }
   std::printf("PPF_REPLAY_START topics=%zu\n", outs.size());
   std::fflush(stdout);
@@ -220,8 +228,11 @@ int main(int argc, char** argv) {
     if (!loop || g_stop) break;
     reader->Seek(start_ns);  // rewinds; stamps loop back in time, the node must cope
   }
-  // Reliable readers: let them fetch the tail before the writers disappear.
+  // Reliable readers: let them fetch the tail before the writers disappear. Best-effort readers
+  // do not acknowledge; when a writer goes away, a reader may discard its samples not yet taken,
+  // so linger before deleting the writers.
   for (auto& [name, out] : outs) out.writer->wait_for_acknowledgments({5, 0});
+  std::this_thread::sleep_for(std::chrono::duration<double>(linger_s));
   std::string counts;
   for (auto& [name, out] : outs) counts += " " + name + "=" + std::to_string(out.count);
   std::printf("PPF_REPLAY_DONE messages=%llu loops=%d%s\n", (unsigned long long)total, loops,

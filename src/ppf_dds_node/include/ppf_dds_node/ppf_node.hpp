@@ -26,7 +26,7 @@ struct NodeSummary {
   uint64_t scans_processed = 0;     // results returned by the core
   uint64_t scans_rejected = 0;      // core said kRejected
   uint64_t scans_initializing = 0;  // core said kInitializing
-  uint64_t resets = 0;              // core said kReset
+  uint64_t resets = 0;              // core said kReset, or the node restarted it (time jump)
   uint64_t degenerate = 0;
   uint64_t odometry_published = 0;
   uint64_t imu_received = 0;
@@ -34,6 +34,8 @@ struct NodeSummary {
   uint64_t imu_overflow = 0;      // evicted from the IMU queue (should never happen)
   uint64_t imu_out_of_order = 0;  // sorted back into time order (within 0.5 s)
   uint64_t time_jumps = 0;        // IMU or scan stamps jumping back > 0.5 s (bag loop)
+  uint64_t scans_late = 0;        // not newer than a scan already processed: dropped
+  uint64_t imu_late = 0;          // older than IMU already integrated (< 0.5 s): dropped
   // Gaps in the writers' sequence numbers: samples that never reached the listener (transport
   // loss, or the reader history overwrote them while the listener was descheduled).
   uint64_t scans_lost = 0;

@@ -70,6 +70,16 @@ class TimeOrderedQueue {
     return n;
   }
 
+  // Pops the front item only if its stamp satisfies `pred`.
+  template <typename Pred>
+  std::optional<std::pair<double, T>> PopFrontIf(Pred pred) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (items_.empty() || !pred(items_.front().first)) return std::nullopt;
+    auto item = std::move(items_.front());
+    items_.pop_front();
+    return item;
+  }
+
   std::optional<std::pair<double, T>> PopFront() {
     std::lock_guard<std::mutex> lock(mutex_);
     if (items_.empty()) return std::nullopt;

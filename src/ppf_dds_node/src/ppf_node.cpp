@@ -29,8 +29,6 @@
 #include "ppf_bridge/skeleton_planes.hpp"
 #include "ppf_core/config_yaml.hpp"
 #include "ppf_core/lio_ppf.hpp"
-#include "ppf_core/ppf_config.hpp"
-#include "ppf_core/skeleton_tracker.hpp"
 #include "ppf_dds_node/gap_counter.hpp"
 #include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/logging.hpp"
@@ -455,22 +453,16 @@ struct PpfNode::Impl {
       path_writer->write(&path);
     }
     if (planes_writer) {
-      // The planes fitted in this scan (missed_scans == 0), world = odom frame. In kNN mode there
-      // is no tracker and the message is empty, still one per scan.
+      // The facade's built-in skeleton tracker (kPpf) reports its world-frame window after each
+      // scan; the message carries the planes fitted in this scan (missed_scans == 0), world = odom
+      // frame. In kNN mode the message is empty, still one per scan. Whether a plane came from an
+      // incremental guess is not in the window (ppf::SkeletonPlane), so `incremental` is false.
       std::vector<SkeletonPlane> fitted;
-      std::vector<int64_t> incremental;
-      if (tracker) {
-        for (const SkeletonPlane& sp : tracker->window().planes()) {
-          if (sp.missed_scans == 0) fitted.push_back(sp);
-        }
-        const auto& prefit = tracker->last_prefit().planes;
-        const auto& ids = tracker->last_track_ids();
-        for (size_t i = 0; i < prefit.size() && i < ids.size(); ++i) {
-          if (prefit[i].from_guess) incremental.push_back(ids[i]);
-        }
+      for (const SkeletonPlane& sp : r.skeleton_planes) {
+        if (sp.missed_scans == 0) fitted.push_back(sp);
       }
       ppf_msgs::msg::SkeletonPlaneArray planes =
-          bridge::ToSkeletonPlaneArray(fitted, r.stamp_s, config.odom_frame, incremental);
+          bridge::ToSkeletonPlaneArray(fitted, r.stamp_s, config.odom_frame);
       planes_writer->write(&planes);
     }
     if (registered_writer && p.msg) PublishRegistered(r, *p.msg);
@@ -623,7 +615,6 @@ struct PpfNode::Impl {
 
   NodeConfig config;
   std::unique_ptr<LioPpf> core;
-  std::shared_ptr<SkeletonTracker> tracker;  // kPpf only
 
   fdds::DomainParticipant* participant = nullptr;
   fdds::Publisher* publisher = nullptr;
@@ -715,25 +706,7 @@ bool PpfNode::init(std::string* error) {
     if (l != Level::kDebug) Log(l, "core: " + msg);
   };
   m.core = std::make_unique<LioPpf>(core_config);
-  if (core_config.mode == Mode::kPpf) {
-    // The facade leaves plane pre-fitting to its caller (lio_ppf.hpp EXTENSION POINT); the node
-    // installs it so the skeleton planes can be published.
-    PpfConfig ppf_config;
-    if (!c.core_config_file.empty()) {
-      std::ifstream in(c.core_config_file);
-      std::stringstream text;
-      text << in.rdbuf();
-      PpfConfigLoadReport rep = LoadPpfConfigYamlString(text.str(), &ppf_config);
-      for (const auto& w : rep.warnings) Log(Level::kWarn, "ppf config: " + w);
-      if (!rep.ok) {
-        *error = "ppf config '" + c.core_config_file + "': " + rep.error;
-        return false;
-      }
-    }
-    m.tracker = std::make_shared<SkeletonTracker>(ppf_config);
-    m.core->SetScanSplitter(m.tracker);
-    m.core->AddResidualProvider(m.tracker->residual_provider());
-  }
+  // kPpf: the facade installs the skeleton tracker itself (Config::ppf from the `ppf:` section).
 
   m.participant = CreateParticipant(c.participant, error);
   if (!m.participant) return false;

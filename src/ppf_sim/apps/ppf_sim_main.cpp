@@ -15,7 +15,7 @@ Generates a deterministic (seeded) LiDAR-inertial sequence with exact ground tru
 DIR as a rosbag2 directory (metadata.yaml + one .mcap or .db3 file) with
   /points  sensor_msgs/msg/PointCloud2   one message per 10 Hz sweep
   /imu     sensor_msgs/msg/Imu           --imu-rate Hz
-plus DIR/groundtruth.tum, DIR/calibration.yaml and DIR/imu_bias.csv.
+plus DIR/groundtruth.tum, DIR/calibration.yaml, DIR/sequence.yaml and DIR/imu_bias.csv.
 
 Time conventions
   PointCloud2 header.stamp = scan START time (time of the first firing). Per-point time is

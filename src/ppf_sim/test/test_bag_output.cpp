@@ -136,6 +136,11 @@ TEST_P(SimBag, ReadableWithRightCountsTypesAndBytes) {
   const std::string cal = Slurp(dir + "/calibration.yaml");
   EXPECT_NE(cal.find("T_imu_lidar"), std::string::npos);
   EXPECT_NE(cal.find("translation: [0.2, 0.05, 0.15]"), std::string::npos);
+  // calibration.yaml is a pure config overlay; the sequence description lives beside it.
+  EXPECT_EQ(cal.find("\nlidar:"), std::string::npos);
+  const std::string sequence = Slurp(dir + "/sequence.yaml");
+  EXPECT_NE(sequence.find("\nlidar:"), std::string::npos);
+  EXPECT_NE(sequence.find("header_stamp: scan_start"), std::string::npos);
   fs::remove_all(dir);
 }
 
@@ -149,7 +154,7 @@ TEST(SimBagDeterminism, SameSeedSameFiles) {
   SimConfig other = ShortConfig(c, "mcap");
   other.seed = 5;
   RunSimulation(other, log);
-  for (const char* f : {"groundtruth.tum", "calibration.yaml", "imu_bias.csv"}) {
+  for (const char* f : {"groundtruth.tum", "calibration.yaml", "sequence.yaml", "imu_bias.csv"}) {
     EXPECT_EQ(Slurp(fs::path(a) / f), Slurp(fs::path(b) / f)) << f;
   }
   const std::string sa = Slurp(fs::path(a) / (fs::path(a).filename().string() + "_0.mcap"));

@@ -137,9 +137,10 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
     Read(queues, "queues", "scan_capacity", &c->scan_queue_capacity, &r);
     Read(queues, "queues", "imu_capacity", &c->imu_queue_capacity, &r);
   }
-  YAML::Node core = section("core", {"config_file", "mode", "omp_wait_policy"});
+  YAML::Node core = section("core", {"config_file", "calibration_file", "mode", "omp_wait_policy"});
   if (core) {
     Read(core, "core", "config_file", &c->core_config_file, &r);
+    Read(core, "core", "calibration_file", &c->core_calibration_file, &r);
     Read(core, "core", "mode", &c->core_mode, &r);
     Read(core, "core", "omp_wait_policy", &c->omp_wait_policy, &r);
     if (!c->omp_wait_policy.empty() && c->omp_wait_policy != "passive" &&
@@ -198,6 +199,7 @@ NodeConfigReport LoadNodeConfig(const std::string& path, NodeConfig* config) {
   const std::string dir = Dirname(path);
   ResolveRelative(dir, &config->participant.profiles_file);
   ResolveRelative(dir, &config->core_config_file);
+  ResolveRelative(dir, &config->core_calibration_file);
   return r;
 }
 

@@ -687,11 +687,12 @@ bool PpfNode::init(std::string* error) {
 
   // Core first: a bad core config must fail before we appear on the network.
   Config core_config;
-  if (!c.core_config_file.empty()) {
-    ConfigLoadReport rep = LoadConfigYaml(c.core_config_file, &core_config);
-    for (const auto& w : rep.warnings) Log(Level::kWarn, "core config: " + w);
+  for (const std::string& file : {c.core_config_file, c.core_calibration_file}) {
+    if (file.empty()) continue;
+    ConfigLoadReport rep = LoadConfigYaml(file, &core_config);
+    for (const auto& w : rep.warnings) Log(Level::kWarn, "core config " + file + ": " + w);
     if (!rep.ok) {
-      *error = "core config '" + c.core_config_file + "': " + rep.error;
+      *error = "core config '" + file + "': " + rep.error;
       return false;
     }
   }

@@ -18,9 +18,11 @@ namespace {
 
 void Usage(const char* argv0) {
   std::fprintf(stderr,
-               "usage: %s [--config FILE] [--domain ID]\n"
-               "  --config FILE  node YAML (every key optional, see config/node.yaml)\n"
-               "  --domain ID    overrides dds.domain_id\n",
+               "usage: %s [--config FILE] [--calibration FILE] [--domain ID]\n"
+               "  --config FILE       node YAML (every key optional, see config/node.yaml)\n"
+               "  --calibration FILE  core YAML layered over core.config_file (e.g. the robot's\n"
+               "                      T_imu_lidar); overrides core.calibration_file\n"
+               "  --domain ID         overrides dds.domain_id\n",
                argv0);
 }
 
@@ -30,11 +32,14 @@ int main(int argc, char** argv) {
   using ppf::dds::Level;
   using ppf::dds::Log;
   std::string config_file;
+  std::string calibration_file;
   int domain_override = -1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--config" && i + 1 < argc) {
       config_file = argv[++i];
+    } else if (a == "--calibration" && i + 1 < argc) {
+      calibration_file = argv[++i];
     } else if (a == "--domain" && i + 1 < argc) {
       domain_override = std::atoi(argv[++i]);
     } else if (a == "-h" || a == "--help") {
@@ -55,6 +60,7 @@ int main(int argc, char** argv) {
     }
   }
   if (domain_override >= 0) config.participant.domain_id = domain_override;
+  if (!calibration_file.empty()) config.core_calibration_file = calibration_file;
 
   // libgomp reads OMP_WAIT_POLICY when it is loaded, before main: to apply the configured policy
   // the process re-executes itself once with it set (same pid, nothing created yet).

@@ -100,7 +100,9 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
     std::ofstream cfg(dir + "/node.yaml");
     cfg << "dds: {domain_id: " << domain << ", profiles_file: \"" << kProfiles
         << "\", profile_name: " << kProfile << "}\n"
-        << "core: {config_file: \"" << PPF_CONFIG_DIR << "/hdl32.yaml\"}\n"
+        // The simulated robot's calibration (non-identity T_imu_lidar) over the LiDAR preset.
+        << "core: {config_file: \"" << PPF_CONFIG_DIR << "/hdl32.yaml\", calibration_file: \""
+        << bag << "/calibration.yaml\"}\n"
         << "trajectory: {tum_file: \"" << dir << "/node.tum\"}\n"
         << extra_node_yaml;
   }
@@ -252,7 +254,7 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
     ChildProcess offline;
     ASSERT_TRUE(offline.Start(
         {offline_, "--bag", dir_ + "/bag", "--config", std::string(PPF_CONFIG_DIR) + "/hdl32.yaml",
-         "--out", dir + "/offline.tum", "--quiet"},
+         "--config", dir_ + "/bag/calibration.yaml", "--out", dir + "/offline.tum", "--quiet"},
         {}, dir + "/offline.log"));
     ASSERT_TRUE(ppf::test::ExitedWith(offline.Wait(60s), 0));
     ppf::Trajectory off;

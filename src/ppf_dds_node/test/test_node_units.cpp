@@ -1,6 +1,9 @@
 // In-process units of the node: config parsing and the hand-over queue.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+
 #include <fastdds/rtps/common/SerializedPayload.h>
 
 #include "ppf_bridge/cdr.hpp"
@@ -83,6 +86,21 @@ TEST(NodeConfig, ShippedPresetsLoadWithoutWarnings) {
     // Relative paths resolve next to the config file.
     EXPECT_EQ(c.participant.profiles_file.rfind(PPF_CONFIG_DIR, 0), 0u) << f;
   }
+}
+
+TEST(NodeConfig, CalibrationFileIsLayeredAndResolvedNextToTheConfig) {
+  const std::string dir = ::testing::TempDir() + "/ppf_node_cfg_calib";
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream f(dir + "/node.yaml");
+    f << "core: {config_file: core.yaml, calibration_file: robot/calibration.yaml}\n";
+  }
+  NodeConfig c;
+  const auto r = LoadNodeConfig(dir + "/node.yaml", &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_TRUE(r.warnings.empty());
+  EXPECT_EQ(c.core_config_file, dir + "/core.yaml");
+  EXPECT_EQ(c.core_calibration_file, dir + "/robot/calibration.yaml");
 }
 
 TEST(TimeOrderedQueue, KeepsTimeOrderAndEvictsOldestWhenFull) {

@@ -6,7 +6,7 @@
 //   qos:     { sensor_reliability: best_effort|reliable, sensor_depth }
 //   outputs: { tf, path, path_max_poses, skeleton_planes, registered_points }
 //   queues:  { scan_capacity, imu_capacity }
-//   core:    { config_file, mode, omp_wait_policy }
+//   core:    { config_file, calibration_file, mode, omp_wait_policy }
 //                                     ppf_core YAML (config/hdl64.yaml, ...), empty = defaults;
 //                                     mode knn|ppf overrides the file's mode
 //   trajectory: { tum_file }          written on shutdown (TUM: t x y z qx qy qz qw), empty = off
@@ -51,6 +51,9 @@ struct NodeConfig {
   int imu_queue_capacity = 100000;
 
   std::string core_config_file;
+  // Layered after core_config_file: the robot's own calibration (T_imu_lidar), e.g. the
+  // calibration.yaml that ppf_sim writes next to a sequence.
+  std::string core_calibration_file;
   std::string core_mode;  // "", "knn" or "ppf" ("" = as in core_config_file)
   // OpenMP idle workers: "passive" (sleep), "active" (spin) or "" (leave the environment alone).
   // Spinning workers compete with the DDS and executor threads (and the core's own next

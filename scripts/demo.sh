@@ -12,7 +12,7 @@ set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
-OUT="${PPF_DEMO_OUT:-out/demo}"
+OUT="$(realpath -m "${PPF_DEMO_OUT:-out/demo}")"
 SCENE="${PPF_DEMO_SCENE:-urban}"
 LIDAR="${PPF_DEMO_LIDAR:-hdl32}"
 DURATION="${PPF_DEMO_DURATION:-20}"
@@ -41,24 +41,37 @@ ppf_sim --scene "$SCENE" --lidar "$LIDAR" --duration "$DURATION" --seed 1 --stor
 ppf_bag_info "$SEQ" 2>/dev/null || true
 
 CONFIG="config/${LIDAR}.yaml"
-[ -f "$CONFIG" ] || CONFIG="config/node.yaml"
+[ -f "$CONFIG" ] || { echo "no preset $CONFIG"; exit 1; }
 
 if have ppf_node && have ppf_replay && have ppf_record; then
-  step "DDS: ppf_replay -> ppf_node -> ppf_record (real time, ${DURATION} s)"
-  DOMAIN=$(( ( $$ % 200 ) + 20 ))
-  export FASTRTPS_DEFAULT_PROFILES_FILE="$ROOT/config/dds/shm_udp.xml"
+  step "DDS: ppf_replay -> ppf_node (mode ppf) -> ppf_record, real time, ${DURATION} s"
+  DOMAIN=$(( ( $$ % 100 ) + 100 ))   # a private DDS domain: the demo must not disturb a ROS graph
+  PROFILES="$ROOT/config/dds/shm_udp.xml"
+  PROFILE=ppf_shm_udp
+  DDS=(--domain "$DOMAIN" --profiles "$PROFILES" --profile "$PROFILE")
   rm -rf "$OUT/recorded" "$OUT/node_traj.tum"
-  ppf_record --domain "$DOMAIN" --topics /odometry /skeleton_planes --out "$OUT/recorded" --storage mcap &
+  cat >"$OUT/node_demo.yaml" <<YAML
+# Written by scripts/demo.sh: config/node.yaml defaults plus the demo's domain and files.
+dds: {domain_id: $DOMAIN, profiles_file: "$PROFILES", profile_name: $PROFILE}
+core: {config_file: "$ROOT/$CONFIG", calibration_file: "$SEQ/calibration.yaml", mode: ppf}
+trajectory: {tum_file: "$OUT/node_traj.tum"}
+YAML
+  ppf_record --topics /odometry /skeleton_planes --out "$OUT/recorded" --storage mcap "${DDS[@]}" \
+    >"$OUT/record.log" 2>&1 &
   rec=$!
-  ppf_node --config "$ROOT/config/node.yaml" --domain "$DOMAIN" --lidar-config "$ROOT/$CONFIG" \
-    --trajectory "$OUT/node_traj.tum" &
+  ppf_node --config "$OUT/node_demo.yaml" >"$OUT/node.log" 2>&1 &
   node=$!
   sleep 2
-  ppf_replay --domain "$DOMAIN" --bag "$SEQ"
-  sleep 2
-  kill -INT "$node"; wait "$node" || true
-  kill -INT "$rec"; wait "$rec" || true
-  ppf_bag_info "$OUT/recorded" 2>/dev/null || true
+  ppf_replay --bag "$SEQ" --wait-matched 15 "${DDS[@]}"
+  sleep 1
+  kill -INT "$node" 2>/dev/null || true
+  wait "$node" || true
+  step "ppf_node log (periodic status lines and the final summary)"
+  tail -n 12 "$OUT/node.log"
+  kill -INT "$rec" 2>/dev/null || true
+  wait "$rec" || true
+  step "what the node published (recorded with ppf_record)"
+  ppf_bag_info "$OUT/recorded" || true
   if have ppf_eval && [ -s "$OUT/node_traj.tum" ]; then
     step "accuracy of the node's odometry vs ground truth"
     ppf_eval ape --ref "$SEQ/groundtruth.tum" --est "$OUT/node_traj.tum" --align se3

@@ -1,7 +1,8 @@
 #include "ppf_bridge/cdr.hpp"
 
+#include "ppf_bridge/cdr_payload.hpp"
+
 #include <algorithm>
-#include <exception>
 
 #include <fastdds/rtps/common/SerializedPayload.h>
 
@@ -18,27 +19,17 @@ bool Serialize(eprosima::fastdds::dds::TopicDataType& type, void* msg, std::vect
 
 bool Deserialize(eprosima::fastdds::dds::TopicDataType& type, const uint8_t* data, size_t size,
                  void* msg, std::string* error) {
-  auto fail = [error](const std::string& why) {
-    if (error) *error = why;
+  if (size > UINT32_MAX) {
+    if (error) *error = "CDR payload larger than 4 GiB";
     return false;
-  };
-  if (data == nullptr || size < 4) return fail("CDR payload shorter than its 4-byte header");
-  // 00 00 = CDR big endian, 00 01 = CDR little endian (XCDR1, what every ROS 2 distro writes).
-  if (data[0] != 0x00 || data[1] > 0x01) {
-    return fail("unsupported CDR encapsulation " + std::to_string(data[0]) + "," +
-                std::to_string(data[1]));
   }
-  if (size > UINT32_MAX) return fail("CDR payload larger than 4 GiB");
-  SerializedPayload_t payload(static_cast<uint32_t>(size));
-  std::copy(data, data + size, payload.data);
-  payload.length = static_cast<uint32_t>(size);
-  try {
-    if (!type.deserialize(&payload, msg)) return fail("truncated CDR payload");
-  } catch (const std::exception& e) {
-    // std::bad_alloc from a corrupt sequence length, or a fastcdr exception we do not expect.
-    return fail(std::string("malformed CDR payload: ") + e.what());
+  // One set of acceptance rules for copied and received payloads: see DeserializePayload.
+  SerializedPayload_t payload(static_cast<uint32_t>(data != nullptr ? size : 0));
+  if (data != nullptr) {
+    std::copy(data, data + size, payload.data);
+    payload.length = static_cast<uint32_t>(size);
   }
-  return true;
+  return DeserializePayload(type, &payload, msg, error);
 }
 
 }  // namespace ppf::bridge::detail

@@ -11,7 +11,7 @@ bool DeserializePayload(eprosima::fastdds::dds::TopicDataType& type,
     if (error) *error = why;
     return false;
   };
-  // The same acceptance rules as Deserialize (cdr.cpp): 00 00 / 00 01 = classic CDR BE / LE.
+  // 00 00 / 00 01 = classic CDR (XCDR1) big / little endian: what every ROS 2 distro writes.
   if (payload == nullptr || payload->data == nullptr || payload->length < 4) {
     return fail("CDR payload shorter than its 4-byte header");
   }

@@ -140,16 +140,8 @@ ImportSummary ImportKittiRaw(const std::string& raw_dir, const std::string& out_
   const LidarModel hdl = GetLidarModel("hdl64");
   BagOutput bag(out_dir, bag_opt);
   size_t next_imu = 0;
-  ImuMessage im;
-  im.frame_id = opt.imu_frame;
   auto flush_imu = [&](int64_t until) {
-    for (; next_imu < imu.size() && imu[next_imu].t <= until; ++next_imu) {
-      im.stamp_ns = imu[next_imu].t;
-      std::copy(imu[next_imu].w, imu[next_imu].w + 3, im.gyro);
-      std::copy(imu[next_imu].a, imu[next_imu].a + 3, im.accel);
-      bag.WriteImu(im, im.stamp_ns);
-      ++sum.imu_samples;
-    }
+    sum.imu_samples += WriteImuUntil(bag, imu, &next_imu, until, opt.imu_frame);
   };
   for (size_t i = 0; i < scans.size(); ++i) {
     std::ifstream in(scans[i], std::ios::binary);

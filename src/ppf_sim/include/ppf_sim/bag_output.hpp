@@ -3,6 +3,7 @@
 // of the generator do not compile against Fast DDS headers.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -56,6 +57,25 @@ class BagOutput {
   BagOutputOptions opt_;
   uint64_t clouds_ = 0, imus_ = 0, bytes_ = 0;
 };
+
+// Importers: writes the time-sorted samples from *next on with stamp t <= until_ns as Imu messages
+// (bag time = stamp) and advances *next, so IMU and clouds interleave in time. Sample needs
+// `int64_t t` (ns) and `double w[3], a[3]`. Returns the number written.
+template <typename Sample>
+size_t WriteImuUntil(BagOutput& bag, const std::vector<Sample>& samples, size_t* next,
+                     int64_t until_ns, const std::string& frame_id) {
+  ImuMessage msg;
+  msg.frame_id = frame_id;
+  size_t written = 0;
+  for (; *next < samples.size() && samples[*next].t <= until_ns; ++*next, ++written) {
+    const Sample& s = samples[*next];
+    msg.stamp_ns = s.t;
+    std::copy(s.w, s.w + 3, msg.gyro);
+    std::copy(s.a, s.a + 3, msg.accel);
+    bag.WriteImu(msg, msg.stamp_ns);
+  }
+  return written;
+}
 
 // Offered QoS as rosbag2 (Humble) records it: reliable, volatile, keep last. Reliable so that
 // `ros2 bag play` output matches both reliable and best-effort subscribers.

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "ppf_core/deskew.hpp"
+#include "ppf_core/preprocess.hpp"
 #include "ppf_core/skeleton_tracker.hpp"
 #include "ppf_core/so3.hpp"
 
@@ -298,20 +299,22 @@ struct LioPpf::Impl {
       Append(&r.reason, "ppf mode requested but no ScanSplitter installed: running kNN");
     }
 
-    // Preprocess: range and stride filtering of the decoded points.
+    // Preprocess: stride and range filter plus the voxel grid, on the raw scan; each kept point
+    // carries the mean time of its voxel (preprocess.hpp: why this comes before de-skew).
     auto t0 = Clock::now();
     std::vector<TimedPoint> pts;
-    pts.reserve(scan.points.size() / static_cast<size_t>(config.point_stride) + 1);
-    const double min_r2 = config.min_range * config.min_range;
-    const double max_r2 = config.max_range * config.max_range;
-    for (size_t i = 0; i < scan.points.size(); i += static_cast<size_t>(config.point_stride)) {
-      const double r2 = scan.points[i].p.cast<double>().squaredNorm();
-      if (r2 >= min_r2 && r2 <= max_r2) pts.push_back(scan.points[i]);
-    }
-    r.valid_points = pts.size();
-    r.timings.preprocess = q.decode_ms + MsSince(t0);
+    PreprocessOptions pre;
+    pre.min_range = config.min_range;
+    pre.max_range = config.max_range;
+    pre.point_stride = config.point_stride;
+    pre.voxel_size = config.scan_voxel_size;
+    const PreprocessStats pre_stats = downsampler.Run(scan.points, pre, &pts);
+    r.valid_points = pre_stats.valid_points;
+    r.downsampled_points = pre_stats.downsampled_points;
+    r.timings.preprocess = q.decode_ms;
+    r.timings.downsample = MsSince(t0);
 
-    // Propagate to the scan end and de-skew.
+    // Propagate to the scan end and de-skew the downsampled points.
     t0 = Clock::now();
     const double t_end = std::max(scan.t_end, state.stamp_s);
     std::vector<ImuSample> samples(imu.begin(), imu.end());
@@ -322,12 +325,12 @@ struct LioPpf::Impl {
       os << "IMU extrapolated by " << t_end - last_imu_stamp << " s (last sample held)";
       Append(&r.reason, os.str());
     }
-    std::vector<Eigen::Vector3f> deskewed;
+    frame = ScanFrame();
     if (scan.has_time_field || scan.times_estimated) {
-      DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &deskewed, config.num_threads);
+      DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &frame.points_lidar, config.num_threads);
     } else {
-      deskewed.reserve(pts.size());
-      for (const TimedPoint& tp : pts) deskewed.push_back(tp.p);
+      frame.points_lidar.reserve(pts.size());
+      for (const TimedPoint& tp : pts) frame.points_lidar.push_back(tp.p);
     }
     r.timings.deskew = MsSince(t0);
     last_scan_end = t_end;
@@ -335,16 +338,11 @@ struct LioPpf::Impl {
     // Keep one sample at or before the state time for the next interpolation.
     while (imu.size() > 2 && imu[1].stamp_s <= state.stamp_s) imu.pop_front();
 
-    t0 = Clock::now();
-    frame = ScanFrame();
     frame.stamp_s = t_end;
-    frame.points_lidar = VoxelDownsample(deskewed, config.scan_voxel_size);
     frame.labels.assign(frame.points_lidar.size(), PointLabel::kScattered);
     frame.T_imu_lidar = config.T_imu_lidar;
     frame.T_world_lidar_predicted = state.T_world_imu() * config.T_imu_lidar;
     frame.map = &map;
-    r.downsampled_points = frame.points_lidar.size();
-    r.timings.downsample = MsSince(t0);
 
     if (!map_initialized) {
       t0 = Clock::now();
@@ -453,6 +451,7 @@ struct LioPpf::Impl {
   std::vector<ScanResult> pending;
   NavState state;
   ScanFrame frame;
+  VoxelGridDownsampler downsampler;  // keeps its hash table between scans
   bool initialized = false;
   bool map_initialized = false;
   double last_imu_stamp = -std::numeric_limits<double>::infinity();

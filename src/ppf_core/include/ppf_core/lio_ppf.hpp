@@ -10,10 +10,11 @@
 //   lio.Process(/*flush=*/true);         // at the end: process the rest (IMU extrapolated)
 //
 // Pipeline per scan (timings in ScanResult::timings):
-//   preprocess  decode layout and per-point time (time_field.hpp), drop NaN / out-of-range points
+//   preprocess  decode layout and per-point time (time_field.hpp), drop NaN points
+//   downsample  stride/range filter and voxel grid (Config::scan_voxel_size, 0.5 m) of the raw
+//               scan; every kept point has its voxel's mean time (preprocess.hpp)
 //   deskew      propagate the IMU to the scan end (midpoint, imu_propagation.hpp) and move every
-//               point to the LiDAR pose at the scan END with its own time (deskew.hpp)
-//   downsample  voxel grid (Config::scan_voxel_size, 0.5 m)
+//               kept point to the LiDAR pose at the scan END with its own time (deskew.hpp)
 //   ppf         ScanSplitter::Split labels points kSkeleton / kScattered / kDiscarded (kPpf only)
 //   residuals   + update: IEKF (iekf.hpp); every iteration each ResidualProvider returns rows
 //   map insert  points labelled kScattered ("map points") go into the kNN VoxelMap
@@ -108,7 +109,10 @@ struct Config {
 // Clamps nonsensical values to safe ones; returns one note per fix (empty if valid).
 std::vector<std::string> ValidateConfig(Config* config);
 
-struct StageTimings {  // milliseconds
+// Milliseconds. preprocess = decoding the cloud (layout, per-point time); downsample = stride and
+// range filter + voxel grid on the raw points; deskew = IMU propagation + de-skew of the
+// downsampled points (preprocess.hpp explains the order).
+struct StageTimings {
   double preprocess = 0, deskew = 0, downsample = 0, ppf = 0, residuals = 0, update = 0,
          map_insert = 0, total = 0;
 };

@@ -3,15 +3,16 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include "ppf_bridge/convert.hpp"
 
 namespace ppf::bridge {
 
-ppf_msgs::msg::SkeletonPlaneArray ToSkeletonPlaneArray(
-    const std::vector<SkeletonPlane>& planes, double stamp_s, const std::string& frame_id,
-    const std::vector<int64_t>& incremental_track_ids) {
+ppf_msgs::msg::SkeletonPlaneArray ToSkeletonPlaneArray(const std::vector<SkeletonPlane>& planes,
+                                                       double stamp_s,
+                                                       const std::string& frame_id) {
   ppf_msgs::msg::SkeletonPlaneArray out;
   out.header().stamp(TimeFromSeconds(stamp_s));
   out.header().frame_id(frame_id);
@@ -28,10 +29,18 @@ ppf_msgs::msg::SkeletonPlaneArray ToSkeletonPlaneArray(
     m.centroid().x(p.centroid.x());
     m.centroid().y(p.centroid.y());
     m.centroid().z(p.centroid.z());
-    // z axis = normal; x axis = the world axis least aligned with it, made perpendicular.
-    Eigen::Vector3d helper = Eigen::Vector3d::UnitX();
-    if (std::abs(n.x()) > 0.9) helper = Eigen::Vector3d::UnitY();
-    const Eigen::Vector3d x = (helper - helper.dot(n) * n).normalized();
+    // In-plane principal axes of the inliers: the scatter projected onto the plane.
+    const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - n * n.transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(P * p.scatter * P);
+    Eigen::Vector3d x = es.eigenvectors().col(2);  // largest eigenvalue
+    x = (x - x.dot(n) * n);
+    if (!(x.norm() > 1e-6) || !p.scatter.allFinite()) {
+      // No spread (or none recorded): any axis perpendicular to the normal.
+      const Eigen::Vector3d helper =
+          std::abs(n.x()) > 0.9 ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitX();
+      x = helper - helper.dot(n) * n;
+    }
+    x.normalize();
     Eigen::Matrix3d R;
     R.col(0) = x;
     R.col(1) = n.cross(x);
@@ -41,9 +50,15 @@ ppf_msgs::msg::SkeletonPlaneArray ToSkeletonPlaneArray(
     m.orientation().y(q.y());
     m.orientation().z(q.z());
     m.orientation().w(q.w());
+    const double count = std::max(1, p.num_inliers);
+    auto sigma = [&](const Eigen::Vector3d& axis) {
+      return std::sqrt(std::max(0.0, axis.dot(p.scatter * axis)) / count);
+    };
+    m.size().x(4.0 * sigma(R.col(0)));
+    m.size().y(4.0 * sigma(R.col(1)));
+    m.size().z(sigma(n));
     m.inlier_count(static_cast<uint32_t>(p.num_inliers < 0 ? 0 : p.num_inliers));
-    m.incremental(std::find(incremental_track_ids.begin(), incremental_track_ids.end(),
-                            p.track_id) != incremental_track_ids.end());
+    m.incremental(p.incremental);
     out.planes().push_back(m);
   }
   return out;

@@ -5,6 +5,7 @@
 
 #include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_bridge/skeleton_planes.hpp"
 
 namespace ppf::bridge {
 namespace {
@@ -137,6 +138,55 @@ TEST(Convert, ImuRoundTripAndNanRejected) {
   std::string error;
   EXPECT_FALSE(ToImuSample(msg, &error).has_value());
   EXPECT_FALSE(error.empty());
+}
+
+TEST(SkeletonPlanes, MarkerGeometryFromTheInlierScatter) {
+  // A wall x = 5 (normal -x, facing the origin), inliers spread uniformly over 20 m along y and
+  // 4 m along z with 2 cm thickness: sigma = L / sqrt(12).
+  SkeletonPlane sp;
+  sp.track_id = 42;
+  sp.age = 7;
+  sp.plane.n = Eigen::Vector3d(-1, 0, 0);
+  sp.plane.d = 5.0;
+  sp.centroid = Eigen::Vector3d(5, 1, 2);
+  sp.num_inliers = 1000;
+  const double sy = 20.0 / std::sqrt(12.0), sz = 4.0 / std::sqrt(12.0), sx = 0.02;
+  sp.scatter = Eigen::Vector3d(sx * sx, sy * sy, sz * sz).asDiagonal();
+  sp.scatter *= sp.num_inliers;
+  sp.incremental = true;
+  SkeletonPlane untracked = sp;
+  untracked.track_id = -1;
+
+  const auto msg = ToSkeletonPlaneArray({sp, untracked}, 12.5, "odom");
+  EXPECT_EQ(msg.header().frame_id(), "odom");
+  ASSERT_EQ(msg.planes().size(), 1u) << "planes without a track id are not published";
+  const auto& m = msg.planes()[0];
+  EXPECT_EQ(m.id(), 42u);
+  EXPECT_EQ(m.age(), 7u);
+  EXPECT_EQ(m.inlier_count(), 1000u);
+  EXPECT_TRUE(m.incremental());
+  EXPECT_DOUBLE_EQ(m.offset(), 5.0);
+  EXPECT_NEAR(m.size().x(), 4.0 * sy, 1e-9);  // major axis: the 20 m direction
+  EXPECT_NEAR(m.size().y(), 4.0 * sz, 1e-9);
+  EXPECT_NEAR(m.size().z(), sx, 1e-9);        // RMS thickness
+  const Eigen::Quaterniond q(m.orientation().w(), m.orientation().x(), m.orientation().y(),
+                             m.orientation().z());
+  const Eigen::Matrix3d R = q.toRotationMatrix();
+  EXPECT_NEAR(std::abs(R.col(0).dot(Eigen::Vector3d::UnitY())), 1.0, 1e-9) << "x = major axis";
+  EXPECT_NEAR(R.col(2).dot(Eigen::Vector3d(-1, 0, 0)), 1.0, 1e-9) << "z = normal";
+  EXPECT_NEAR(R.determinant(), 1.0, 1e-9);
+}
+
+TEST(SkeletonPlanes, NoScatterStillGivesAValidOrientation) {
+  SkeletonPlane sp;
+  sp.track_id = 1;
+  sp.plane.n = Eigen::Vector3d(0, 0, 1);
+  const auto msg = ToSkeletonPlaneArray({sp}, 0.0, "odom");
+  ASSERT_EQ(msg.planes().size(), 1u);
+  const auto& o = msg.planes()[0].orientation();
+  EXPECT_NEAR(o.x() * o.x() + o.y() * o.y() + o.z() * o.z() + o.w() * o.w(), 1.0, 1e-9);
+  EXPECT_DOUBLE_EQ(msg.planes()[0].size().x(), 0.0);
+  EXPECT_FALSE(msg.planes()[0].incremental());
 }
 
 }  // namespace

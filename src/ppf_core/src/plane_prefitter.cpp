@@ -48,6 +48,10 @@ void PlanePrefitter::Accept(const Plane& plane, bool from_guess, int64_t track_i
     result->skeleton_plane.push_back(plane_id);
   }
   if (!split_.strict.empty()) fitted.centroid = sum / static_cast<double>(split_.strict.size());
+  for (int pos : split_.strict) {
+    const Eigen::Vector3d q = remaining_[pos].cast<double>() - fitted.centroid;
+    fitted.scatter.noalias() += q * q.transpose();
+  }
   for (int pos : split_.semi) result->discarded_indices.push_back(remaining_index_[pos]);
   result->planes.push_back(fitted);
 

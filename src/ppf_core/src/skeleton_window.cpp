@@ -37,6 +37,7 @@ std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitt
   const size_t nf = fitted.size();
   std::vector<Plane> world(nf);
   std::vector<Eigen::Vector3d> centroid(nf);
+  std::vector<PlaneMoments> moments(nf);
   for (size_t i = 0; i < nf; ++i) {
     Plane pl = fitted[i].plane;
     // New tracks face the sensor (sensor origin on the positive side): a convention users can
@@ -44,6 +45,11 @@ std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitt
     if (pl.d < 0.0) pl = pl.Flipped();
     world[i] = TransformPlane(T_world_lidar, pl);
     centroid[i] = T_world_lidar * fitted[i].centroid;
+    PlaneMoments m;
+    m.count = fitted[i].num_inliers;
+    m.centroid = fitted[i].centroid;
+    m.scatter = fitted[i].scatter;
+    moments[i] = m.Transformed(T_world_lidar);
   }
 
   std::vector<int> track_of(nf, -1);  // fitted -> index in planes_
@@ -93,6 +99,7 @@ std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitt
   for (size_t j = 0; j < planes_.size(); ++j) {
     SkeletonPlane sp = planes_[j];
     ++sp.age;
+    sp.incremental = false;
     if (!claimed[j]) {
       ++sp.missed_scans;
       if (sp.missed_scans <= config_.window_max_missed_scans) next.push_back(sp);
@@ -109,6 +116,8 @@ std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitt
         if (pl.n.dot(sp.plane.n) < 0.0) pl = pl.Flipped();  // keep the track's orientation
         sp.plane = pl;
         sp.centroid = centroid[i];
+        sp.scatter = moments[i].scatter;
+        sp.incremental = fitted[i].from_guess;
         sp.num_inliers = fitted[i].num_inliers;
         ++sp.hits;
         sp.missed_scans = 0;
@@ -120,6 +129,7 @@ std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitt
       sp.track_id = next_track_id_++;
       sp.plane = world[i];
       sp.centroid = centroid[i];
+      sp.scatter = moments[i].scatter;
       sp.num_inliers = fitted[i].num_inliers;
       sp.hits = 1;
       next.push_back(sp);

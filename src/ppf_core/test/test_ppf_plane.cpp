@@ -1,6 +1,8 @@
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -84,6 +86,65 @@ TEST(PpfPlane, AngleIgnoresOrientation) {
   EXPECT_NEAR(PlaneAngle(a, a.Flipped()), 0.0, 1e-12);
   const Plane b{Eigen::Vector3d(std::sin(0.1), 0, std::cos(0.1)), 0.0};
   EXPECT_NEAR(PlaneAngle(a, b), 0.1, 1e-9);
+}
+
+}  // namespace
+}  // namespace ppf
+
+namespace ppf {
+namespace {
+
+PlaneMoments MomentsOf(const std::vector<Eigen::Vector3d>& pts) {
+  PlaneMoments m;
+  m.count = static_cast<double>(pts.size());
+  for (const auto& p : pts) m.centroid += p / m.count;
+  for (const auto& p : pts) m.scatter += (p - m.centroid) * (p - m.centroid).transpose();
+  return m;
+}
+
+TEST(PlaneMoments, MergeAndTransformEqualTheMomentsOfAllPoints) {
+  // Two patches of the tilted plane 0.1x - 0.2y + z = 3 with noise, in some frame A.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  std::vector<Eigen::Vector3d> a, b, all;
+  for (int i = 0; i < 400; ++i) {
+    const double x = u(rng) + (i < 200 ? -6.0 : 6.0), y = u(rng);
+    const Eigen::Vector3d p(x, y, 3.0 - 0.1 * x + 0.2 * y + noise(rng));
+    (i < 200 ? a : b).push_back(p);
+    all.push_back(p);
+  }
+  PlaneMoments merged = MomentsOf(a);
+  merged.Merge(MomentsOf(b));
+  const PlaneMoments whole = MomentsOf(all);
+  EXPECT_DOUBLE_EQ(merged.count, 400.0);
+  EXPECT_TRUE(merged.centroid.isApprox(whole.centroid, 1e-12));
+  EXPECT_TRUE(merged.scatter.isApprox(whole.scatter, 1e-10));
+
+  const auto plane = merged.FitPlane();
+  ASSERT_TRUE(plane.has_value());
+  const Eigen::Vector3d truth_n = Eigen::Vector3d(0.1, -0.2, 1.0).normalized();
+  EXPECT_LT(std::acos(std::min(1.0, std::abs(plane->n.dot(truth_n)))), 0.2 * M_PI / 180.0);
+
+  // Moments moved to frame B equal the moments of the moved points.
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(4, -1, 2);
+  std::vector<Eigen::Vector3d> moved;
+  for (const auto& p : all) moved.push_back(T * p);
+  const PlaneMoments in_b = whole.Transformed(T);
+  const PlaneMoments truth_b = MomentsOf(moved);
+  EXPECT_TRUE(in_b.centroid.isApprox(truth_b.centroid, 1e-12));
+  EXPECT_TRUE(in_b.scatter.isApprox(truth_b.scatter, 1e-10));
+}
+
+TEST(PlaneMoments, TooFewOrCollinearPointsFitNoPlane) {
+  EXPECT_FALSE(MomentsOf({{0, 0, 0}, {1, 0, 0}}).FitPlane().has_value());
+  EXPECT_FALSE(MomentsOf({{0, 0, 0}, {1, 1, 1}, {2, 2, 2}, {3, 3, 3}}).FitPlane().has_value());
+  PlaneMoments empty;
+  empty.Merge(MomentsOf({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}));
+  EXPECT_DOUBLE_EQ(empty.count, 3.0);
+  EXPECT_TRUE(empty.FitPlane().has_value());
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+
 #include "ppf_core/plane_prefitter.hpp"
 #include "ppf_core/skeleton_window.hpp"
 #include "ppf_test_scenes.hpp"
@@ -73,6 +75,12 @@ void RunTrackingScenario(bool incremental) {
       EXPECT_EQ(sp.age, scan - first_scan_of[sp.track_id]);
       EXPECT_EQ(sp.hits, sp.age + 1);
       EXPECT_EQ(sp.missed_scans, 0);
+      // Published with the plane: was this scan's fit the track's own guess?
+      EXPECT_EQ(sp.incremental, incremental && scan > 0) << "track " << sp.track_id;
+      // The inlier scatter is in the world frame: its flattest direction is the world normal.
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(sp.scatter);
+      EXPECT_GT(std::abs(es.eigenvectors().col(0).dot(sp.plane.n)), std::cos(2.0 * M_PI / 180.0));
+      EXPECT_GT(es.eigenvalues()(1), 100.0 * es.eigenvalues()(0)) << "a plane, not a blob";
     }
   }
   EXPECT_EQ(id_of_truth.size(), 3u);

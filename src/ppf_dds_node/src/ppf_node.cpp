@@ -455,8 +455,7 @@ struct PpfNode::Impl {
     if (planes_writer) {
       // The facade's built-in skeleton tracker (kPpf) reports its world-frame window after each
       // scan; the message carries the planes fitted in this scan (missed_scans == 0), world = odom
-      // frame. In kNN mode the message is empty, still one per scan. Whether a plane came from an
-      // incremental guess is not in the window (ppf::SkeletonPlane), so `incremental` is false.
+      // frame. In kNN mode the message is empty, still one per scan.
       std::vector<SkeletonPlane> fitted;
       for (const SkeletonPlane& sp : r.skeleton_planes) {
         if (sp.missed_scans == 0) fitted.push_back(sp);

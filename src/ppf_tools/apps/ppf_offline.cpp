@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <iomanip>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -35,6 +36,8 @@ Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) without DDS, as fa
   --format tum|kitti    trajectory format (default: tum; KITTI writes 3x4 rows, no stamps)
   --frame imu|lidar     which frame's pose to write (default: imu, the ground truth frame of ppf_sim)
   --stats FILE          per-scan statistics, CSV (.csv) or JSON (.json)
+  --planes FILE         --mode ppf: the skeleton-plane window after every scan, CSV (one row per
+                        plane: stamp, track id, age, hits, world normal/offset/centroid, inliers)
   --points-topic NAME   PointCloud2 topic (default: the first one in the bag)
   --imu-topic NAME      Imu topic (default: the first one in the bag)
   --threads N           OpenMP threads for the core (default: config, else all cores)
@@ -46,8 +49,8 @@ Exit status: 0 on success, 1 on a bad bag/config/argument, 2 if no scan produced
 
 struct Args {
   std::vector<std::string> configs;
-  std::string bag, mode, out = "trajectory.tum", format = "tum", frame = "imu", stats,
-                                  points_topic, imu_topic;
+  std::string bag, mode, out = "trajectory.tum", format = "tum", frame = "imu", stats, planes,
+      points_topic, imu_topic;
   int threads = -1;
   bool quiet = false;
 };
@@ -82,6 +85,8 @@ Args ParseArgs(int argc, char** argv) {
       a.frame = value(i);
     } else if (arg == "--stats") {
       a.stats = value(i);
+    } else if (arg == "--planes") {
+      a.planes = value(i);
     } else if (arg == "--points-topic") {
       a.points_topic = value(i);
     } else if (arg == "--imu-topic") {
@@ -185,6 +190,21 @@ int main(int argc, char** argv) {
     } else {
       ppf::tools::WriteStatsCsvHeader(os);
       for (const auto& r : results) ppf::tools::WriteStatsCsvRow(os, r);
+    }
+  }
+  if (!args.planes.empty()) {
+    std::ofstream os(args.planes);
+    if (!os) Fail("cannot write " + args.planes);
+    os << "stamp,track_id,age,hits,missed_scans,nx,ny,nz,d,cx,cy,cz,inliers\n";
+    os << std::setprecision(9);
+    for (const auto& r : results) {
+      for (const auto& sp : r.skeleton_planes) {
+        os << std::fixed << std::setprecision(6) << r.stamp_s << std::defaultfloat
+           << std::setprecision(9) << "," << sp.track_id << "," << sp.age << "," << sp.hits << ","
+           << sp.missed_scans << "," << sp.plane.n.x() << "," << sp.plane.n.y() << ","
+           << sp.plane.n.z() << "," << sp.plane.d << "," << sp.centroid.x() << ","
+           << sp.centroid.y() << "," << sp.centroid.z() << "," << sp.num_inliers << "\n";
+      }
     }
   }
   if (!args.quiet) {

@@ -10,12 +10,12 @@
 
 namespace ppf::bridge {
 
-// `planes` are world-frame planes (the node's odom frame); `incremental_track_ids` lists the
-// tracks whose latest fit came from an incremental guess. Fields the window does not track are
-// filled conservatively: orientation is built from the normal alone (z = normal, x = a
-// perpendicular axis), size is zero. Planes with a negative track id (never tracked) are skipped.
-ppf_msgs::msg::SkeletonPlaneArray ToSkeletonPlaneArray(
-    const std::vector<SkeletonPlane>& planes, double stamp_s, const std::string& frame_id,
-    const std::vector<int64_t>& incremental_track_ids = {});
+// `planes` are world-frame planes (the node's odom frame). orientation/size come from the latest
+// fit's inlier scatter: z = normal, x = major in-plane axis; size x, y = 4 sigma (a +-2 sigma box)
+// along the major/minor axes, z = RMS distance of the inliers from the plane. Planes with a
+// negative track id (never tracked) are skipped.
+ppf_msgs::msg::SkeletonPlaneArray ToSkeletonPlaneArray(const std::vector<SkeletonPlane>& planes,
+                                                       double stamp_s,
+                                                       const std::string& frame_id);
 
 }  // namespace ppf::bridge

@@ -44,4 +44,21 @@ Plane TransformPlane(const Eigen::Isometry3d& T_to_from, const Plane& plane_from
 // Angle between the planes' normals in radians, ignoring orientation (in [0, pi/2]).
 double PlaneAngle(const Plane& a, const Plane& b);
 
+// First and second moments of a plane's inlier points: count, centroid and scatter
+// sum (p - c)(p - c)^T. Moments of several point sets merge exactly, so a plane can be fitted to
+// the inliers of several scans without keeping their points.
+struct PlaneMoments {
+  double count = 0.0;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+
+  // The same points seen in frame `to` (p_to = T_to_from * p_from).
+  PlaneMoments Transformed(const Eigen::Isometry3d& T_to_from) const;
+  // Adds another point set (parallel-axis theorem).
+  void Merge(const PlaneMoments& other);
+  // PCA plane: normal = eigenvector of the smallest scatter eigenvalue, through the centroid.
+  // Empty for fewer than 3 points or a line-like set (middle eigenvalue ~ 0).
+  std::optional<Plane> FitPlane() const;
+};
+
 }  // namespace ppf

@@ -30,6 +30,9 @@ struct PlaneGuess {
 struct FittedPlane {
   Plane plane;                                         // refined, scan (LiDAR) frame
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  // of its strict inliers, scan frame
+  // Sum of (p - centroid)(p - centroid)^T over the strict inliers, scan frame: with centroid and
+  // num_inliers the plane's full second moments (extent, thickness, multi-scan fits).
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
   int num_inliers = 0;                                 // its skeleton points
   bool from_guess = false;
   int64_t guess_track_id = -1;  // the track whose guess produced it; -1 for RANSAC planes

@@ -29,6 +29,9 @@ struct SkeletonPlane {
   Plane plane;                                         // world frame
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  // world, of the latest strict inliers
   int num_inliers = 0;                                 // strict inliers at the latest fit
+  // World-frame scatter of the latest fit's strict inliers about `centroid` (extent, thickness).
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  bool incremental = false;  // this scan's fit came from the IMU-predicted guess of this track
   int age = 0;           // scans since the track was created (0 in its first scan)
   int hits = 0;          // scans in which the plane was fitted
   int missed_scans = 0;  // consecutive scans without a fit

@@ -24,6 +24,14 @@ void Put(uint8_t* dst, uint32_t offset, T v) {
 
 }  // namespace
 
+Eigen::Isometry3d DefaultImuLidarExtrinsic() {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  const double d2r = M_PI / 180.0;
+  T.linear() = EulerToRotation({1.0 * d2r, -1.5 * d2r, 2.0 * d2r});
+  T.translation() = Eigen::Vector3d(0.2, 0.05, 0.15);
+  return T;
+}
+
 ScanGenerator::ScanGenerator(const Scene& scene, const Trajectory& traj, LidarModel model,
                              ScanOptions opt)
     : scene_(scene), traj_(traj), model_(std::move(model)), opt_(std::move(opt)) {

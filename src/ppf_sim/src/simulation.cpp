@@ -28,14 +28,6 @@ std::string Vec(const double* v, int n, int prec = 9) {
 
 }  // namespace
 
-Eigen::Isometry3d DefaultImuLidarExtrinsic() {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  const double d2r = M_PI / 180.0;
-  T.linear() = EulerToRotation({1.0 * d2r, -1.5 * d2r, 2.0 * d2r});
-  T.translation() = Eigen::Vector3d(0.2, 0.05, 0.15);
-  return T;
-}
-
 SimConfig::SimConfig() { scan.T_imu_lidar = DefaultImuLidarExtrinsic(); }
 
 std::string TumLine(int64_t stamp_ns, const Eigen::Isometry3d& T) {

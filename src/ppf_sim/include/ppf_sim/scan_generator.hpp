@@ -32,6 +32,11 @@ struct ScanOptions {
   bool stamp_at_end = false;
 };
 
+// Default T_imu_lidar: LiDAR 0.2 m ahead, 0.05 m left and 0.15 m above the IMU, rotated by
+// roll 1.0, pitch -1.5, yaw 2.0 deg (a realistic, slightly imperfect mount). Part of the
+// generator library so that in-process users (no bag, no calibration.yaml) get the same mount.
+Eigen::Isometry3d DefaultImuLidarExtrinsic();
+
 class ScanGenerator {
  public:
   ScanGenerator(const Scene& scene, const Trajectory& traj, LidarModel model, ScanOptions opt);

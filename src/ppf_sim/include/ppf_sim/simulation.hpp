@@ -29,9 +29,7 @@ struct SimConfig {
   SimConfig();
 };
 
-// Default T_imu_lidar: LiDAR 0.2 m ahead, 0.05 m left and 0.15 m above the IMU, rotated by
-// roll 1.0, pitch -1.5, yaw 2.0 deg (a realistic, slightly imperfect mount).
-Eigen::Isometry3d DefaultImuLidarExtrinsic();
+// DefaultImuLidarExtrinsic() (the simulated mount) is declared in scan_generator.hpp.
 
 struct SimSummary {
   int scans = 0;

@@ -67,6 +67,7 @@ World BuildWorld(const WorldOptions& opt) {
       lim.straight_max = 80;
       lim.world_radius = 100;
     }
+    if (opt.roam_radius > 0.0 && !handheld) lim.world_radius = opt.roam_radius;
     path = PlanOpenPath(lim, kKnotDt, n_samples, move_time, rng);
     if (handheld) SmoothYaw(path, kKnotDt, 0.3);
   }

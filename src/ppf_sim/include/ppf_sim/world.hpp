@@ -20,6 +20,10 @@ struct WorldOptions {
   double duration = 30.0;         // s the trajectory must cover
   double static_time = 2.5;       // s at rest at the start
   double max_rate_deg = 150.0;    // hand-held shake: peak rate of the shake, deg/s (turns add)
+  // m; open-ground car drives (urban, park, ramps) turn back towards the origin beyond this
+  // distance. 0 = the scene's own (150 m, park 100 m). Larger values let long drives (endurance
+  // runs) keep reaching new ground instead of circling the same few blocks.
+  double roam_radius = 0.0;
   uint64_t seed = 1;
 };
 

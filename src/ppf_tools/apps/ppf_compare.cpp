@@ -3,162 +3,85 @@
 //
 //   ppf_compare                    # full: 60 s urban HDL-64 / urban HDL-32 / indoor VLP-16 / park HDL-32
 //   ppf_compare --short            # CI: shorter sequences, same table
-#include <cstdio>
 #include <cstdlib>
-#include <filesystem>
+#include <exception>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include "ppf_core/config_yaml.hpp"
 #include "ppf_core/evaluation.hpp"
-#include "ppf_tools/offline_runner.hpp"
 #include "ppf_tools/scan_stats.hpp"
+#include "ppf_tools/study.hpp"
 
 #ifndef PPF_DEFAULT_CONFIG_DIR
 #define PPF_DEFAULT_CONFIG_DIR "config"
 #endif
 
-namespace fs = std::filesystem;
-
 namespace {
 
-constexpr const char* kUsage = R"(usage: ppf_compare [options]
+constexpr const char* kDefaultSequences = "urban:hdl64,urban:hdl32,indoor:vlp16,park:hdl32";
 
-Runs --mode knn and --mode ppf on the same simulated sequences (generated with ppf_sim on first
-use) and prints one table: stage timings, scans per second, local map size, APE/RPE.
-
-  --short               CI form: shorter sequences (default durations 60 s -> 10 s)
-  --sequences LIST      comma-separated scene:lidar pairs
-                        (default: urban:hdl64,urban:hdl32,indoor:vlp16,park:hdl32)
-  --duration S          sequence length in seconds (default 60, --short 10)
-  --workdir DIR         where sequences are generated/reused (default: out/compare)
-  --config-dir DIR      LiDAR presets <lidar>.yaml (default: the repository's config/)
-  --threads N           OpenMP threads for the core (default: all cores)
-  -h, --help            this text
-)";
-
-struct Sequence {
-  std::string scene, lidar;
-};
-
-struct ModeResult {
-  ppf::tools::RunSummary summary;
-  ppf::EvalResult ape, rpe;
-  double path_length = 0.0;
-};
+using ModeResult = ppf::tools::ModeRun;
 
 [[noreturn]] void Fail(const std::string& msg) {
   std::cerr << "ppf_compare: " << msg << "\n";
   std::exit(1);
 }
 
-std::vector<Sequence> ParseSequences(const std::string& list) {
-  std::vector<Sequence> out;
-  std::stringstream ss(list);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    const auto colon = item.find(':');
-    if (colon == std::string::npos) Fail("sequence '" + item + "' is not scene:lidar");
-    out.push_back({item.substr(0, colon), item.substr(colon + 1)});
-  }
-  return out;
-}
-
-std::string EnsureSequence(const Sequence& seq, double duration, const std::string& workdir) {
-  std::ostringstream name;
-  name << seq.scene << "_" << seq.lidar << "_" << static_cast<int>(duration) << "s";
-  const fs::path dir = fs::path(workdir) / name.str();
-  if (fs::exists(dir / "metadata.yaml") && fs::exists(dir / "groundtruth.tum")) return dir.string();
-  fs::remove_all(dir);
-  fs::create_directories(dir.parent_path());
-  std::ostringstream cmd;
-  cmd << "ppf_sim --scene " << seq.scene << " --lidar " << seq.lidar << " --duration " << duration
-      << " --seed 1 --storage mcap --out '" << dir.string() << "' > '" << dir.string()
-      << ".sim.log' 2>&1";
-  std::cerr << "ppf_compare: generating " << name.str() << " with ppf_sim...\n";
-  if (std::system(cmd.str().c_str()) != 0) {
-    Fail("ppf_sim failed for " + name.str() + " (see " + dir.string() + ".sim.log)");
-  }
-  return dir.string();
-}
-
-ModeResult RunMode(const std::string& bag, const ppf::Config& base, ppf::Mode mode,
-                   const ppf::Trajectory& gt) {
-  ppf::Config config = base;
-  config.mode = mode;
-  ModeResult out;
-  const auto run = ppf::tools::RunOffline(bag, config);
-  out.summary = ppf::tools::Summarize(run.results, run.wall_s);
-  ppf::EvalOptions eval;
-  eval.align = ppf::Alignment::kSE3;
-  out.ape = ppf::ComputeApe(gt, run.trajectory, eval);
-  out.rpe = ppf::ComputeRpe(gt, run.trajectory, eval);
-  out.path_length = ppf::PathLength(gt);
-  return out;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool short_form = false;
-  std::string sequences = "urban:hdl64,urban:hdl32,indoor:vlp16,park:hdl32";
-  double duration = -1.0;
-  std::string workdir = "out/compare";
-  std::string config_dir = PPF_DEFAULT_CONFIG_DIR;
-  int threads = -1;
+  ppf::tools::StudyOptions opts;
+  opts.sequences = kDefaultSequences;
+  opts.config_dir = PPF_DEFAULT_CONFIG_DIR;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) Fail("missing value after " + a);
-      return argv[++i];
-    };
+    std::string error;
+    const int used = ppf::tools::ParseStudyOption(argc, argv, &i, &opts, &error);
+    if (used < 0) Fail(error);
+    if (used > 0) continue;
     if (a == "-h" || a == "--help") {
-      std::cout << kUsage;
+      std::cout << "usage: ppf_compare [options]\n\n"
+                   "Runs --mode knn and --mode ppf on the same simulated sequences (generated with\n"
+                   "ppf_sim on first use) and prints one table: stage timings, scans per second,\n"
+                   "local map size, APE/RPE.\n\n"
+                << ppf::tools::StudyOptionsHelp(kDefaultSequences)
+                << "  -h, --help            this text\n";
       return 0;
-    } else if (a == "--short") {
-      short_form = true;
-    } else if (a == "--sequences") {
-      sequences = value();
-    } else if (a == "--duration") {
-      duration = std::atof(value().c_str());
-    } else if (a == "--workdir") {
-      workdir = value();
-    } else if (a == "--config-dir") {
-      config_dir = value();
-    } else if (a == "--threads") {
-      threads = std::atoi(value().c_str());
-    } else {
-      Fail("unknown argument '" + a + "' (see --help)");
     }
+    Fail("unknown argument '" + a + "' (see --help)");
   }
-  if (duration <= 0) duration = short_form ? 10.0 : 60.0;
+  const double duration = opts.EffectiveDuration();
+  std::vector<ppf::tools::SequenceSpec> sequences;
+  std::string error;
+  if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
 
   struct Row {
-    Sequence seq;
+    ppf::tools::SequenceSpec seq;
     ModeResult knn, ppf;
   };
   std::vector<Row> rows;
-  for (const auto& seq : ParseSequences(sequences)) {
-    const std::string bag = EnsureSequence(seq, duration, workdir);
+  for (const auto& seq : sequences) {
+    std::string bag;
+    try {
+      bag = ppf::tools::EnsureSequence(seq, duration, opts.workdir, std::cerr);
+    } catch (const std::exception& e) {
+      Fail(e.what());
+    }
     ppf::Config config;
-    const std::string preset = config_dir + "/" + seq.lidar + ".yaml";
-    const auto report = ppf::LoadConfigYaml(preset, &config);
-    if (!report.ok) Fail(preset + ": " + report.error);
-    // The simulated robot's calibration (its T_imu_lidar) on top of the LiDAR preset.
-    const auto calib = ppf::LoadConfigYaml(bag + "/calibration.yaml", &config);
-    if (!calib.ok) Fail(bag + "/calibration.yaml: " + calib.error);
-    if (threads >= 0) config.num_threads = threads;
+    if (!ppf::tools::LoadSequenceConfig(opts.config_dir, seq.lidar, bag, opts.threads, &config,
+                                        &error)) {
+      Fail(error);
+    }
     ppf::Trajectory gt;
-    std::string error;
     if (!ppf::ReadTum(bag + "/groundtruth.tum", &gt, &error)) Fail(error);
-    std::cerr << "ppf_compare: " << seq.scene << "/" << seq.lidar << ": knn...\n";
-    Row row{seq, RunMode(bag, config, ppf::Mode::kKnn, gt), {}};
-    std::cerr << "ppf_compare: " << seq.scene << "/" << seq.lidar << ": ppf...\n";
-    row.ppf = RunMode(bag, config, ppf::Mode::kPpf, gt);
-    rows.push_back(row);
+    std::cerr << "ppf_compare: " << seq.Name() << ": knn...\n";
+    Row row{seq, ppf::tools::RunAndEvaluate(bag, config, ppf::Mode::kKnn, gt), {}};
+    std::cerr << "ppf_compare: " << seq.Name() << ": ppf...\n";
+    row.ppf = ppf::tools::RunAndEvaluate(bag, config, ppf::Mode::kPpf, gt);
+    rows.push_back(std::move(row));
   }
 
   std::cout << "\nkNN vs PPF, " << duration << " s sequences (mean per scan; ms; map in points)\n";
@@ -176,14 +99,14 @@ int main(int argc, char** argv) {
               << s.mean.map_insert << std::setprecision(0) << std::setw(10) << s.mean_map_size
               << std::setw(9) << s.mean_skeleton_points << std::setprecision(3) << std::setw(9)
               << (m.ape.ok ? m.ape.stats.rmse : -1.0) << std::setprecision(2) << std::setw(8)
-              << (m.ape.ok && m.path_length > 0 ? 100.0 * m.ape.stats.rmse / m.path_length : -1.0)
+              << m.ApePercent()
               << std::setprecision(3) << std::setw(9) << (m.rpe.ok ? m.rpe.stats.rmse : -1.0)
               << "\n";
   };
   bool all_ok = true;
   std::ostringstream targets;
   for (const auto& r : rows) {
-    const std::string name = r.seq.scene + "/" + r.seq.lidar;
+    const std::string name = r.seq.Name();
     print(name, "knn", r.knn);
     print(name, "ppf", r.ppf);
     const double speedup = r.knn.summary.scans_per_s > 0 ? r.ppf.summary.scans_per_s / r.knn.summary.scans_per_s : 0;

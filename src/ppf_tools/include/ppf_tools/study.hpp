@@ -1,0 +1,82 @@
+// Shared by the study commands (ppf_compare, ppf_accuracy_study): which simulated sequences to
+// run, generating them once with ppf_sim, the LiDAR preset + the sequence's calibration, one run of
+// the core per mode scored against ground truth, and the issue's accuracy bounds.
+#pragma once
+
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "ppf_core/evaluation.hpp"
+#include "ppf_core/lio_ppf.hpp"
+#include "ppf_tools/scan_stats.hpp"
+
+namespace ppf::tools {
+
+struct SequenceSpec {
+  std::string scene, lidar;
+  std::string Name() const { return scene + "/" + lidar; }  // "urban/hdl64"
+};
+
+// "scene:lidar[,scene:lidar...]" with scenes and LiDARs that ppf_sim knows. False and *error
+// (naming the bad item and the valid names) for anything else, including an empty list.
+bool ParseSequenceList(const std::string& list, std::vector<SequenceSpec>* out,
+                       std::string* error);
+
+// Options every study command takes. ParseStudyOption consumes argv[*i] (and its value) if it is
+// one of them: returns 1 when consumed, 0 when the argument is not a study option, -1 on an error
+// (*error says why).
+struct StudyOptions {
+  bool short_form = false;
+  std::string sequences;  // command's default
+  double duration = -1.0;  // <= 0: 60 s, or 10 s with --short
+  std::string workdir = "out/compare";
+  std::string config_dir;
+  int threads = -1;  // < 0: the preset's num_threads
+
+  double EffectiveDuration() const { return duration > 0 ? duration : (short_form ? 10.0 : 60.0); }
+};
+int ParseStudyOption(int argc, char** argv, int* i, StudyOptions* opts, std::string* error);
+// Help text lines for the options above (with the command's default sequence list).
+std::string StudyOptionsHelp(const std::string& default_sequences);
+
+// The sequence's directory under `workdir` (<scene>_<lidar>_<seconds>s), generated with ppf_sim
+// (seed 1, MCAP) unless a complete one is already there. ppf_sim is taken from PATH. Progress goes
+// to `log`. Throws std::runtime_error if ppf_sim fails (its log file is named in the message).
+std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::string& workdir,
+                           std::ostream& log);
+
+// config_dir/<lidar>.yaml, then <bag>/calibration.yaml (the simulated robot's T_imu_lidar) on top,
+// as a user layers a calibration over a preset. threads >= 0 overrides num_threads.
+bool LoadSequenceConfig(const std::string& config_dir, const std::string& lidar,
+                        const std::string& bag, int threads, Config* config, std::string* error);
+
+// "handheld" or "car", from <bag>/sequence.yaml; empty if it cannot be read.
+std::string SequenceMotion(const std::string& bag);
+
+struct ModeRun {
+  RunSummary summary;
+  EvalResult ape, rpe;  // SE(3)-aligned, like evo; rpe over consecutive poses
+  double path_length = 0.0;  // ground truth, metres
+  Trajectory trajectory;     // T_world_imu of every scan with a pose
+  std::vector<ScanResult> results;
+  double ApePercent() const {
+    return ape.ok && path_length > 0 ? 100.0 * ape.stats.rmse / path_length : -1.0;
+  }
+};
+
+// RunOffline with config.mode = mode, scored against gt. Throws what RunOffline throws.
+ModeRun RunAndEvaluate(const std::string& bag, const Config& base, Mode mode,
+                       const Trajectory& gt);
+
+// The accuracy bounds of issue 4 for one sequence: APE RMSE at most 0.5 % of the path length
+// (urban, indoor, ramps) or 1 % (park); hand-held motion additionally at most 5 cm.
+struct AccuracyBound {
+  double max_percent = 0.5;
+  double max_abs_m = 0.0;  // 0: none
+  std::string Describe() const;  // "<=0.5%", "<=0.5%,5cm"
+  bool Met(const ModeRun& run) const;
+};
+AccuracyBound BoundFor(const std::string& scene, const std::string& motion);
+
+}  // namespace ppf::tools

@@ -1,0 +1,220 @@
+#include "ppf_tools/study.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include "ppf_core/config_yaml.hpp"
+#include "ppf_sim/lidar_model.hpp"
+#include "ppf_sim/world.hpp"
+#include "ppf_tools/offline_runner.hpp"
+
+namespace fs = std::filesystem;
+
+namespace ppf::tools {
+
+namespace {
+
+std::string Join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
+  return s;
+}
+
+bool Contains(const std::vector<std::string>& v, const std::string& x) {
+  return std::find(v.begin(), v.end(), x) != v.end();
+}
+
+}  // namespace
+
+bool ParseSequenceList(const std::string& list, std::vector<SequenceSpec>* out,
+                       std::string* error) {
+  out->clear();
+  const auto scenes = sim::SceneNames();
+  const auto lidars = sim::LidarModelNames();
+  std::stringstream ss(list);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    const auto colon = item.find(':');
+    if (colon == std::string::npos) {
+      *error = "sequence '" + item + "' is not scene:lidar (e.g. urban:hdl64)";
+      return false;
+    }
+    SequenceSpec seq{item.substr(0, colon), item.substr(colon + 1)};
+    if (!Contains(scenes, seq.scene)) {
+      *error = "sequence '" + item + "': unknown scene '" + seq.scene + "' (" + Join(scenes) + ")";
+      return false;
+    }
+    if (!Contains(lidars, seq.lidar)) {
+      *error = "sequence '" + item + "': unknown LiDAR '" + seq.lidar + "' (" + Join(lidars) + ")";
+      return false;
+    }
+    out->push_back(seq);
+  }
+  if (out->empty()) {
+    *error = "no sequences given";
+    return false;
+  }
+  return true;
+}
+
+int ParseStudyOption(int argc, char** argv, int* i, StudyOptions* opts, std::string* error) {
+  const std::string a = argv[*i];
+  auto value = [&](std::string* v) {
+    if (*i + 1 >= argc) {
+      *error = "missing value after " + a;
+      return false;
+    }
+    *v = argv[++*i];
+    return true;
+  };
+  auto number = [&](double* v) {
+    std::string s;
+    if (!value(&s)) return false;
+    char* end = nullptr;
+    *v = std::strtod(s.c_str(), &end);
+    if (s.empty() || *end != '\0') {
+      *error = a + ": not a number: '" + s + "'";
+      return false;
+    }
+    return true;
+  };
+  double n = 0;
+  if (a == "--short") {
+    opts->short_form = true;
+  } else if (a == "--sequences") {
+    if (!value(&opts->sequences)) return -1;
+  } else if (a == "--duration") {
+    if (!number(&opts->duration)) return -1;
+    if (!(opts->duration > 0)) {
+      *error = "--duration must be positive";
+      return -1;
+    }
+  } else if (a == "--workdir") {
+    if (!value(&opts->workdir)) return -1;
+  } else if (a == "--config-dir") {
+    if (!value(&opts->config_dir)) return -1;
+  } else if (a == "--threads") {
+    if (!number(&n)) return -1;
+    opts->threads = static_cast<int>(n);
+  } else {
+    return 0;
+  }
+  return 1;
+}
+
+std::string StudyOptionsHelp(const std::string& default_sequences) {
+  return "  --short               CI form: shorter sequences (default durations 60 s -> 10 s)\n"
+         "  --sequences LIST      comma-separated scene:lidar pairs\n"
+         "                        (default: " +
+         default_sequences +
+         ")\n"
+         "  --duration S          sequence length in seconds (default 60, --short 10)\n"
+         "  --workdir DIR         where sequences are generated/reused (default: out/compare,\n"
+         "                        shared by ppf_compare and ppf_accuracy_study)\n"
+         "  --config-dir DIR      LiDAR presets <lidar>.yaml (default: the repository's config/)\n"
+         "  --threads N           OpenMP threads for the core (default: the preset's)\n";
+}
+
+std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::string& workdir,
+                           std::ostream& log) {
+  std::ostringstream name;
+  name << seq.scene << "_" << seq.lidar << "_" << static_cast<int>(duration) << "s";
+  const fs::path dir = fs::path(workdir) / name.str();
+  // groundtruth.tum is written after the bag is closed: its presence means a complete sequence.
+  if (fs::exists(dir / "metadata.yaml") && fs::exists(dir / "groundtruth.tum")) return dir.string();
+  fs::remove_all(dir);
+  fs::create_directories(dir.parent_path());
+  std::ostringstream cmd;
+  cmd << "ppf_sim --scene " << seq.scene << " --lidar " << seq.lidar << " --duration " << duration
+      << " --seed 1 --storage mcap --out '" << dir.string() << "' > '" << dir.string()
+      << ".sim.log' 2>&1";
+  log << "generating " << name.str() << " with ppf_sim...\n" << std::flush;
+  if (std::system(cmd.str().c_str()) != 0) {
+    throw std::runtime_error("ppf_sim failed for " + name.str() + " (see " + dir.string() +
+                             ".sim.log)");
+  }
+  return dir.string();
+}
+
+bool LoadSequenceConfig(const std::string& config_dir, const std::string& lidar,
+                        const std::string& bag, int threads, Config* config, std::string* error) {
+  const std::string preset = config_dir + "/" + lidar + ".yaml";
+  if (!fs::exists(preset)) {
+    *error = preset + ": no such preset";
+    return false;
+  }
+  const auto report = LoadConfigYaml(preset, config);
+  if (!report.ok) {
+    *error = preset + ": " + report.error;
+    return false;
+  }
+  const auto calib = LoadConfigYaml(bag + "/calibration.yaml", config);
+  if (!calib.ok) {
+    *error = bag + "/calibration.yaml: " + calib.error;
+    return false;
+  }
+  if (threads >= 0) config->num_threads = threads;
+  return true;
+}
+
+std::string SequenceMotion(const std::string& bag) {
+  std::ifstream in(bag + "/sequence.yaml");
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto k = line.find("motion:");
+    if (k == std::string::npos) continue;
+    std::string v = line.substr(k + 7);
+    v.erase(0, v.find_first_not_of(" \t"));
+    v.erase(v.find_last_not_of(" \t\r") + 1);
+    return v;
+  }
+  return "";
+}
+
+ModeRun RunAndEvaluate(const std::string& bag, const Config& base, Mode mode,
+                       const Trajectory& gt) {
+  Config config = base;
+  config.mode = mode;
+  ModeRun out;
+  auto run = RunOffline(bag, config);
+  out.summary = Summarize(run.results, run.wall_s);
+  EvalOptions eval;
+  eval.align = Alignment::kSE3;
+  out.ape = ComputeApe(gt, run.trajectory, eval);
+  out.rpe = ComputeRpe(gt, run.trajectory, eval);
+  out.path_length = PathLength(gt);
+  out.trajectory = std::move(run.trajectory);
+  out.results = std::move(run.results);
+  return out;
+}
+
+std::string AccuracyBound::Describe() const {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "<=%g%%", max_percent);
+  std::string s = buf;
+  if (max_abs_m > 0) {
+    std::snprintf(buf, sizeof(buf), ",%gcm", 100.0 * max_abs_m);
+    s += buf;
+  }
+  return s;
+}
+
+bool AccuracyBound::Met(const ModeRun& run) const {
+  if (!run.ape.ok) return false;
+  if (run.ApePercent() > max_percent) return false;
+  return max_abs_m <= 0 || run.ape.stats.rmse <= max_abs_m;
+}
+
+AccuracyBound BoundFor(const std::string& scene, const std::string& motion) {
+  AccuracyBound b;
+  b.max_percent = scene == "park" ? 1.0 : 0.5;
+  if (motion == "handheld") b.max_abs_m = 0.05;
+  return b;
+}
+
+}  // namespace ppf::tools

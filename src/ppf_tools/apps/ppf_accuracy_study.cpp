@@ -79,9 +79,12 @@ int main(int argc, char** argv) {
     std::stringstream ss(modes_arg);
     std::string m;
     while (std::getline(ss, m, ',')) {
-      if (m == "knn") modes.push_back(ppf::Mode::kKnn);
-      else if (m == "ppf") modes.push_back(ppf::Mode::kPpf);
-      else Fail("--modes: unknown mode '" + m + "' (knn, ppf)");
+      if (m == "knn")
+        modes.push_back(ppf::Mode::kKnn);
+      else if (m == "ppf")
+        modes.push_back(ppf::Mode::kPpf);
+      else
+        Fail("--modes: unknown mode '" + m + "' (knn, ppf)");
     }
     if (modes.empty()) Fail("--modes: no mode given");
   }
@@ -134,8 +137,7 @@ int main(int argc, char** argv) {
         std::cerr << "ppf_accuracy_study: " << row.name << " " << row.mode
                   << " failed: " << row.failure << "\n";
       } else if (!save_dir.empty()) {
-        const std::string base =
-            save_dir + "/" + seq.scene + "_" + seq.lidar + "_" + row.mode;
+        const std::string base = save_dir + "/" + seq.scene + "_" + seq.lidar + "_" + row.mode;
         ppf::WriteTum(base + ".tum", row.run.trajectory);
         std::ofstream csv(base + ".csv");
         ppf::tools::WriteStatsCsvHeader(csv);
@@ -149,15 +151,16 @@ int main(int argc, char** argv) {
 
   std::cout << "\nAPE against the issue's bounds, " << duration
             << " s sequences (SE(3)-aligned; RPE between consecutive scans)\n";
-  std::cout << std::left << std::setw(16) << "sequence" << std::setw(10) << "motion"
-            << std::setw(6) << "mode" << std::right << std::setw(7) << "scans" << std::setw(7)
-            << "posed" << std::setw(7) << "degen" << std::setw(9) << "path m" << std::setw(9)
-            << "APE m" << std::setw(8) << "APE %" << std::setw(9) << "APE max" << std::setw(9)
-            << "RPE m" << "  " << std::left << std::setw(12) << "bound" << "result\n";
+  std::cout << std::left << std::setw(16) << "sequence" << std::setw(10) << "motion" << std::setw(6)
+            << "mode" << std::right << std::setw(7) << "scans" << std::setw(7) << "posed"
+            << std::setw(7) << "degen" << std::setw(9) << "path m" << std::setw(9) << "APE m"
+            << std::setw(8) << "APE %" << std::setw(9) << "APE max" << std::setw(9) << "RPE m"
+            << "  " << std::left << std::setw(12) << "bound"
+            << "result\n";
   bool all_met = true, any_failed = false;
   for (const auto& r : rows) {
-    std::cout << std::left << std::setw(16) << r.name << std::setw(10) << r.motion
-              << std::setw(6) << r.mode << std::right;
+    std::cout << std::left << std::setw(16) << r.name << std::setw(10) << r.motion << std::setw(6)
+              << r.mode << std::right;
     if (!r.failure.empty()) {
       std::cout << "  FAILED: " << r.failure << "\n";
       any_failed = true;
@@ -172,8 +175,8 @@ int main(int argc, char** argv) {
               << r.run.path_length << std::setprecision(3) << std::setw(9) << r.run.ape.stats.rmse
               << std::setprecision(2) << std::setw(8) << r.run.ApePercent() << std::setprecision(3)
               << std::setw(9) << r.run.ape.stats.max << std::setw(9)
-              << (r.run.rpe.ok ? r.run.rpe.stats.rmse : -1.0) << "  " << std::left
-              << std::setw(12) << r.bound.Describe() << (met ? "met" : "MISSED") << "\n";
+              << (r.run.rpe.ok ? r.run.rpe.stats.rmse : -1.0) << "  " << std::left << std::setw(12)
+              << r.bound.Describe() << (met ? "met" : "MISSED") << "\n";
   }
   std::cout << "\n" << (all_met ? "all bounds met" : "some bounds missed") << "\n";
   return any_failed ? 1 : 0;  // a study reports; test_accuracy asserts the bounds

@@ -20,15 +20,14 @@ struct SequenceSpec {
 
 // "scene:lidar[,scene:lidar...]" with scenes and LiDARs that ppf_sim knows. False and *error
 // (naming the bad item and the valid names) for anything else, including an empty list.
-bool ParseSequenceList(const std::string& list, std::vector<SequenceSpec>* out,
-                       std::string* error);
+bool ParseSequenceList(const std::string& list, std::vector<SequenceSpec>* out, std::string* error);
 
 // Options every study command takes. ParseStudyOption consumes argv[*i] (and its value) if it is
 // one of them: returns 1 when consumed, 0 when the argument is not a study option, -1 on an error
 // (*error says why).
 struct StudyOptions {
   bool short_form = false;
-  std::string sequences;  // command's default
+  std::string sequences;   // command's default
   double duration = -1.0;  // <= 0: 60 s, or 10 s with --short
   std::string workdir = "out/compare";
   std::string config_dir;
@@ -56,7 +55,7 @@ std::string SequenceMotion(const std::string& bag);
 
 struct ModeRun {
   RunSummary summary;
-  EvalResult ape, rpe;  // SE(3)-aligned, like evo; rpe over consecutive poses
+  EvalResult ape, rpe;       // SE(3)-aligned, like evo; rpe over consecutive poses
   double path_length = 0.0;  // ground truth, metres
   Trajectory trajectory;     // T_world_imu of every scan with a pose
   std::vector<ScanResult> results;
@@ -66,14 +65,13 @@ struct ModeRun {
 };
 
 // RunOffline with config.mode = mode, scored against gt. Throws what RunOffline throws.
-ModeRun RunAndEvaluate(const std::string& bag, const Config& base, Mode mode,
-                       const Trajectory& gt);
+ModeRun RunAndEvaluate(const std::string& bag, const Config& base, Mode mode, const Trajectory& gt);
 
 // The accuracy bounds of issue 4 for one sequence: APE RMSE at most 0.5 % of the path length
 // (urban, indoor, ramps) or 1 % (park); hand-held motion additionally at most 5 cm.
 struct AccuracyBound {
   double max_percent = 0.5;
-  double max_abs_m = 0.0;  // 0: none
+  double max_abs_m = 0.0;        // 0: none
   std::string Describe() const;  // "<=0.5%", "<=0.5%,5cm"
   bool Met(const ModeRun& run) const;
 };

@@ -396,7 +396,10 @@ struct LioPpf::Impl {
     if (config.mode == Mode::kPpf && splitter) {
       t0 = Clock::now();
       splitter->Finish(frame, T_world_lidar);
-      if (ppf_tracker && splitter == ppf_tracker) r.skeleton_planes = ppf_tracker->window().planes();
+      if (ppf_tracker && splitter == ppf_tracker) {
+        r.skeleton_planes = ppf_tracker->window().planes();
+        r.skeleton_patches = ppf_tracker->patch_map().num_patches();
+      }
       r.timings.ppf += MsSince(t0);
     }
     for (ResidualProvider* p : providers) p->EndScan(T_world_lidar);

@@ -89,6 +89,11 @@ std::vector<std::string> ValidatePpfConfig(PpfConfig* c) {
       &c->track_max_angle_deg, d.track_max_angle_deg, "track_max_angle_deg", &notes);
   Fix(!std::isfinite(c->track_max_offset) || c->track_max_offset < 0.0, &c->track_max_offset,
       d.track_max_offset, "track_max_offset", &notes);
+  Fix(BadPositive(c->patch_size), &c->patch_size, d.patch_size, "patch_size", &notes);
+  Fix(c->patch_max_points < 3, &c->patch_max_points, d.patch_max_points, "patch_max_points",
+      &notes);
+  Fix(!std::isfinite(c->patch_radius) || c->patch_radius < 0.0, &c->patch_radius, d.patch_radius,
+      "patch_radius", &notes);
   Fix(c->num_threads < 0, &c->num_threads, d.num_threads, "num_threads", &notes);
   return notes;
 }
@@ -152,6 +157,11 @@ void ApplyPpfSection(const YAML::Node& section, PpfConfig* c, PpfConfigLoadRepor
       {"window_max_missed_scans", integer(&c->window_max_missed_scans)},
       {"track_max_angle_deg", num(&c->track_max_angle_deg)},
       {"track_max_offset", num(&c->track_max_offset)},
+      {"anchor_patches", boolean(&c->anchor_patches)},
+      {"patch_window_fallback", boolean(&c->patch_window_fallback)},
+      {"patch_size", num(&c->patch_size)},
+      {"patch_max_points", integer(&c->patch_max_points)},
+      {"patch_radius", num(&c->patch_radius)},
       {"num_threads", integer(&c->num_threads)},
   };
   for (const auto& kv : section) {

@@ -11,15 +11,21 @@ namespace ppf {
 
 namespace {
 
-// own_normals may be empty (no gate); otherwise parallel to skeleton_indices.
+// own_normals may be empty (no gate, no patches); otherwise parallel to skeleton_indices.
 void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
                    const std::vector<int>& skeleton_indices,
                    const std::vector<Eigen::Vector3d>& own_normals, double normal_gate_deg,
                    const Eigen::Isometry3d& T_world_lidar, const std::vector<Plane>& window_world,
-                   double eps, std::vector<SkeletonMatch>* matches) {
+                   double eps, std::vector<SkeletonMatch>* matches,
+                   const PlanePatchMap* patches = nullptr, bool window_fallback = true) {
   matches->clear();
-  if (window_world.empty() || skeleton_indices.empty() || !(eps > 0.0)) return;
-  const bool gate = normal_gate_deg > 0.0 && own_normals.size() == skeleton_indices.size();
+  const bool have_normals = own_normals.size() == skeleton_indices.size();
+  const bool use_patches = patches != nullptr && have_normals && patches->num_cells() > 0;
+  if ((window_world.empty() && !use_patches) || skeleton_indices.empty() || !(eps > 0.0)) return;
+  const bool gate = normal_gate_deg > 0.0 && have_normals;
+  // Patches are chosen by their own surface orientation; the window gate's angle, or 10 degrees.
+  const double patch_min_cos =
+      std::cos((normal_gate_deg > 0.0 ? std::min(normal_gate_deg, 90.0) : 10.0) * M_PI / 180.0);
   const double min_cos = std::cos(std::min(normal_gate_deg, 90.0) * M_PI / 180.0);
   // Fold the pose into the planes once: f_L = (T_lidar_world^-1)^T f_W (Theorem 1), so each point
   // costs one dot product per plane and the signed distance is unchanged (rigid motion).
@@ -38,6 +44,25 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
     const int idx = skeleton_indices[i];
     if (idx >= 0 && idx < num_points) {
       const Eigen::Vector3d p = points_lidar[idx].cast<double>();
+      if (use_patches) {
+        const Eigen::Vector3d p_w = T_world_lidar * p;
+        const PlanePatchMap::Patch* patch =
+            patches->Find(p_w, T_world_lidar.linear() * own_normals[i], patch_min_cos);
+        if (patch != nullptr) {
+          const double s = patch->plane.SignedDistance(p_w);
+          if (std::abs(s) < eps) {
+            m.point_index = idx;
+            m.signed_distance = s;
+            m.plane = patch->plane;
+          }
+          per_point[i] = m;
+          continue;  // a patch of its own surface exists: the window is not consulted
+        }
+        if (!window_fallback) {  // no patch of its surface here yet: no residual
+          per_point[i] = m;
+          continue;
+        }
+      }
       double best = std::numeric_limits<double>::infinity();
       int best_plane = -1;
       for (int j = 0; j < np; ++j) {
@@ -52,6 +77,7 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
         m.point_index = idx;
         m.plane_index = best_plane;
         m.signed_distance = best;
+        m.plane = window_world[best_plane];
       }
     }
     per_point[i] = m;
@@ -106,7 +132,7 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   }
   matches_.clear();
   own_normals_.clear();
-  if (prefit_ != nullptr && normal_gate_deg_ > 0.0) {
+  if (prefit_ != nullptr && (normal_gate_deg_ > 0.0 || patches_ != nullptr)) {
     // Normal of each skeleton point's own plane; the gate is skipped if labels and pre-fit
     // disagree (a custom splitter changed the labels).
     std::vector<int> plane_of(frame.points_lidar.size(), -1);
@@ -130,13 +156,13 @@ void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lida
                                            std::vector<PointPlaneRow>* rows) {
   if (frame_ == nullptr) return;
   MatchSkeleton(frame_->points_lidar, skeleton_indices_, own_normals_, normal_gate_deg_,
-                T_world_lidar, planes_world_, eps_, &matches_);
+                T_world_lidar, planes_world_, eps_, &matches_, patches_, window_fallback_);
   rows->reserve(rows->size() + matches_.size());
   for (const SkeletonMatch& m : matches_) {
     PointPlaneRow row;
     row.point_lidar = frame_->points_lidar[m.point_index].cast<double>();
-    row.normal_world = planes_world_[m.plane_index].n;
-    row.offset = planes_world_[m.plane_index].d;
+    row.normal_world = m.plane.n;
+    row.offset = m.plane.d;
     rows->push_back(row);
   }
 }

@@ -30,6 +30,9 @@ Eigen::Isometry3d PoseAt(int scan) {
 TEST(PpfTracker, LabelsRowsAndWindowThroughTheHooks) {
   PpfConfig cfg = PpfConfigForBeams(64);
   cfg.plane_least_inliers = 150;
+  // Points in cells the patch map has not seen yet fall back to the window: every skeleton point
+  // can be matched (without the fallback those ~10 % give no residual).
+  cfg.patch_window_fallback = true;
   SkeletonTracker tracker(cfg);
   auto provider = tracker.residual_provider();
   std::map<size_t, int64_t> first_ids;
@@ -54,9 +57,9 @@ TEST(PpfTracker, LabelsRowsAndWindowThroughTheHooks) {
     if (scan == 0) {
       EXPECT_TRUE(rows.empty());  // empty window: nothing to match yet
     } else {
-      // With the window from the previous scan nearly every skeleton point is matched, and at
-      // the true pose every residual is small: within delta of its own plane, plus the small
-      // difference between this scan's fit and the window's (previous scan's) fit.
+      // With the patch map and the window from the previous scans nearly every skeleton point is
+      // matched, and at the true pose every residual is small: within delta of its own plane, plus
+      // the small difference between this scan's fit and the earlier ones.
       EXPECT_GT(rows.size(), skeleton * 9 / 10);
       for (const PointPlaneRow& row : rows) {
         ASSERT_LT(std::abs(row.normal_world.dot(PoseAt(scan) * row.point_lidar) + row.offset), 0.12);
@@ -80,8 +83,10 @@ TEST(PpfTracker, LabelsRowsAndWindowThroughTheHooks) {
       EXPECT_EQ(now, before);
     }
   }
+  EXPECT_GT(tracker.patch_map().num_patches(), 0u);
   tracker.Reset();
   EXPECT_TRUE(tracker.window().empty());
+  EXPECT_EQ(tracker.patch_map().num_cells(), 0u);
 }
 
 }  // namespace

@@ -26,7 +26,8 @@ void WriteStatsCsvHeader(std::ostream& os) {
   os << "stamp,status,reason,pose_valid,iterations,converged,t_preprocess_ms,t_deskew_ms,"
         "t_downsample_ms,t_ppf_ms,t_residuals_ms,t_update_ms,t_map_insert_ms,t_total_ms,"
         "map_size,input_points,valid_points,downsampled_points,skeleton_points,"
-        "scattered_points,discarded_points,knn_residuals,skeleton_residuals,map_inserted\n";
+        "scattered_points,discarded_points,knn_residuals,skeleton_residuals,map_inserted,"
+        "skeleton_patches\n";
 }
 
 void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
@@ -38,7 +39,7 @@ void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
      << t.map_insert << ',' << t.total << ',' << r.map_size << ',' << r.input_points << ','
      << r.valid_points << ',' << r.downsampled_points << ',' << r.skeleton_points << ','
      << r.scattered_points << ',' << r.discarded_points << ',' << r.knn_residuals << ','
-     << r.skeleton_residuals << ',' << r.map_inserted << '\n';
+     << r.skeleton_residuals << ',' << r.map_inserted << ',' << r.skeleton_patches << '\n';
 }
 
 void WriteStatsJson(std::ostream& os, const std::vector<ScanResult>& results) {
@@ -58,7 +59,8 @@ void WriteStatsJson(std::ostream& os, const std::vector<ScanResult>& results) {
        << ", \"skeleton_points\": " << r.skeleton_points
        << ", \"scattered_points\": " << r.scattered_points
        << ", \"knn_residuals\": " << r.knn_residuals
-       << ", \"skeleton_residuals\": " << r.skeleton_residuals << "}"
+       << ", \"skeleton_residuals\": " << r.skeleton_residuals
+       << ", \"skeleton_patches\": " << r.skeleton_patches << "}"
        << (i + 1 < results.size() ? ",\n" : "\n");
   }
   os << "]\n";

@@ -148,6 +148,9 @@ struct ScanResult {
   // kPpf with the built-in tracker: the world-frame skeleton-plane window after this scan. Track
   // ids are stable for the same physical plane across scans (ppf_msgs/SkeletonPlaneArray).
   std::vector<SkeletonPlane> skeleton_planes;
+  // kPpf with the built-in tracker: plane patches in its map (plane_patch_map.hpp), the skeleton
+  // points' share of the local map (a patch summarises up to patch_max_points points).
+  size_t skeleton_patches = 0;
   size_t map_inserted = 0;        // points offered to the map
 
   int iterations = 0;

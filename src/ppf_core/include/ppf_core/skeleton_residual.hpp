@@ -2,6 +2,10 @@
 // of the world-frame window F, and only if that distance is below the gate eps. There is no kNN
 // search: the search space is <= window_size planes instead of the local point map.
 //
+// With a PlanePatchMap (plane_patch_map.hpp, SetPatchMap) a skeleton point whose world cell holds
+// a patch of its own surface is matched to that patch instead (map-anchored; see that header for
+// the measured reason); the window planes remain the fallback.
+//
 // Matches are recomputed from scratch at every call (every IEKF iteration): no per-point
 // "selected" flag survives between iterations, unlike the reference code where a stale flag kept
 // matches from an earlier linearisation point.
@@ -14,6 +18,7 @@
 #include <Eigen/Geometry>
 
 #include "ppf_core/plane.hpp"
+#include "ppf_core/plane_patch_map.hpp"
 #include "ppf_core/residual_provider.hpp"
 
 namespace ppf {
@@ -23,8 +28,9 @@ struct PrefitResult;
 
 struct SkeletonMatch {
   int point_index = -1;          // index into the scan's points
-  int plane_index = -1;          // index into the window planes passed in
+  int plane_index = -1;          // index into the window planes passed in; -1 = a map patch
   double signed_distance = 0.0;  // n . (T_world_lidar p) + d, |.| < eps
+  Plane plane;                   // the matched plane, world frame
 };
 
 // Eq. 10 for the points `skeleton_indices` of `points_lidar` at pose T_world_lidar. Appends one
@@ -57,6 +63,13 @@ class SkeletonResidualProvider : public ResidualProvider {
   // Enables the normal-consistency gate (see above) using the pre-fit of the current scan, which
   // must be complete before BeginScan (SkeletonTracker does this). normal_gate_deg <= 0: off.
   void SetPrefitSource(const PrefitResult* prefit, double normal_gate_deg);
+  // Map-anchored matches (needs the pre-fit source for each point's own normal); nullptr = off.
+  // window_fallback: points whose cell has no patch of their surface yet are matched to the
+  // window (true) or give no residual (false).
+  void SetPatchMap(const PlanePatchMap* patches, bool window_fallback) {
+    patches_ = patches;
+    window_fallback_ = window_fallback;
+  }
   std::string Name() const override { return "skeleton"; }
   void BeginScan(const ScanFrame& frame) override;
   void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
@@ -75,6 +88,8 @@ class SkeletonResidualProvider : public ResidualProvider {
   std::vector<SkeletonMatch> matches_;
   const PrefitResult* prefit_ = nullptr;
   double normal_gate_deg_ = 0.0;
+  const PlanePatchMap* patches_ = nullptr;
+  bool window_fallback_ = true;
   std::vector<Eigen::Vector3d> own_normals_;  // per skeleton_indices_ entry, scan frame
 };
 

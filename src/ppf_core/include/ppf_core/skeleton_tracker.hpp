@@ -4,10 +4,11 @@
 //   Split   (before the update)  window planes -> guesses at the IMU-predicted pose; pre-fit the
 //                                scan; label Omega kSkeleton, semi-inliers kDiscarded, Theta
 //                                kScattered (only those enter the kNN map).
-//   rows    (every IEKF iter.)   SkeletonResidualProvider: Omega against the window F as it was
-//                                before this scan (Eq. 10), recomputed at every iteration.
+//   rows    (every IEKF iter.)   SkeletonResidualProvider: Omega against the plane patch map
+//                                (anchor_patches) or else the window F as it was before this
+//                                scan (Eq. 10), recomputed at every iteration.
 //   Finish  (after the update)   this scan's planes -> world with the converged pose -> window
-//                                (track association keeps ids stable).
+//                                (track association keeps ids stable); Omega -> patch map.
 //
 // Usage with the facade (Mode::kPpf installs this by default):
 //   auto tracker = std::make_shared<ppf::SkeletonTracker>(ppf_config);
@@ -19,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "ppf_core/plane_patch_map.hpp"
 #include "ppf_core/plane_prefitter.hpp"
 #include "ppf_core/ppf_config.hpp"
 #include "ppf_core/residual_provider.hpp"
@@ -41,6 +43,7 @@ class SkeletonTracker : public ScanSplitter {
 
   const PpfConfig& config() const { return prefitter_.config(); }
   const SkeletonWindow& window() const { return window_; }
+  const PlanePatchMap& patch_map() const { return patches_; }
   const PrefitResult& last_prefit() const { return prefit_; }  // of the last Split
   // Track ids of the last Finish, one per plane of last_prefit().planes.
   const std::vector<int64_t>& last_track_ids() const { return last_ids_; }
@@ -48,6 +51,8 @@ class SkeletonTracker : public ScanSplitter {
  private:
   PlanePrefitter prefitter_;
   SkeletonWindow window_;
+  PlanePatchMap patches_;
+  int scans_since_prune_ = 0;
   std::shared_ptr<SkeletonResidualProvider> provider_;
   PrefitResult prefit_;
   std::vector<int64_t> last_ids_;

@@ -1,0 +1,134 @@
+// Plane patch map (plane_patch_map.hpp): where skeleton planes were, so skeleton residuals are
+// anchored to the map rather than to the previous scan.
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "ppf_core/plane_patch_map.hpp"
+#include "ppf_core/plane_prefitter.hpp"
+#include "ppf_core/residual_provider.hpp"
+#include "ppf_core/skeleton_residual.hpp"
+#include "ppf_core/skeleton_window.hpp"
+
+namespace ppf {
+namespace {
+
+const Eigen::Vector3d kUp = Eigen::Vector3d::UnitZ();
+
+TEST(PlanePatchMap, ParallelSurfacesInOneCellStaySeparatePatches) {
+  // A road at z = 0 and the pavement 15 cm higher, both inside the 2 m cell [0,2)^2.
+  PlanePatchMap map;
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u(0.05, 1.95);
+  for (int i = 0; i < 30; ++i) {
+    map.Insert({u(rng), u(rng), 0.3}, kUp);
+    map.Insert({u(rng), u(rng), 0.45}, -kUp);  // either normal sign is the same surface
+  }
+  map.FinishInsert();
+  EXPECT_EQ(map.num_cells(), 1u);
+  ASSERT_EQ(map.num_patches(), 2u);
+  const double min_cos = std::cos(10.0 * M_PI / 180.0);
+  const auto* road = map.Find({1.0, 1.0, 0.32}, kUp, min_cos);
+  const auto* kerb = map.Find({1.0, 1.0, 0.43}, kUp, min_cos);
+  ASSERT_NE(road, nullptr);
+  ASSERT_NE(kerb, nullptr);
+  EXPECT_NE(road, kerb);
+  EXPECT_NEAR(road->plane.Distance({0.5, 0.5, 0.3}), 0.0, 1e-9);
+  EXPECT_NEAR(kerb->plane.Distance({0.5, 0.5, 0.45}), 0.0, 1e-9);
+  // A wall point in the same cell has no patch of its orientation.
+  EXPECT_EQ(map.Find({1.0, 1.0, 0.3}, Eigen::Vector3d::UnitX(), min_cos), nullptr);
+  // Nor does a neighbouring cell.
+  EXPECT_EQ(map.Find({3.0, 1.0, 0.3}, kUp, min_cos), nullptr);
+}
+
+TEST(PlanePatchMap, FirstObservationsAnchorThePatch) {
+  PlanePatchMapOptions options;
+  options.max_points = 20;
+  options.min_points = 5;
+  PlanePatchMap map(options);
+  const double min_cos = std::cos(10.0 * M_PI / 180.0);
+  for (int i = 0; i < 4; ++i) map.Insert({0.2 + 0.4 * i, 0.5 + 0.2 * i, 1.0}, kUp);
+  map.FinishInsert();
+  EXPECT_EQ(map.Find({1.0, 1.0, 1.0}, kUp, min_cos), nullptr) << "fewer than min_points";
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<double> u(0.05, 1.95);
+  for (int i = 0; i < 16; ++i) map.Insert({u(rng), u(rng), 1.0}, kUp);
+  map.FinishInsert();
+  // Later observations 5 cm higher (a drifted pose) do not move the frozen patch.
+  for (int i = 0; i < 100; ++i) map.Insert({u(rng), u(rng), 1.05}, kUp);
+  map.FinishInsert();
+  const auto* patch = map.Find({1.0, 1.0, 1.0}, kUp, min_cos);
+  ASSERT_NE(patch, nullptr);
+  EXPECT_DOUBLE_EQ(patch->moments.count, 20.0);
+  EXPECT_NEAR(patch->plane.Distance({1.0, 1.0, 1.0}), 0.0, 1e-6);
+  EXPECT_NEAR(std::abs(patch->plane.n.z()), 1.0, 1e-6);
+}
+
+TEST(PlanePatchMap, BoundedAroundTheSensorAndInCells) {
+  PlanePatchMapOptions options;
+  options.max_cells = 100;
+  PlanePatchMap map(options);
+  for (int i = 0; i < 1000; ++i) {
+    map.Insert({2.0 * i + 1.0, 1.0, 0.0}, kUp);
+    map.FinishInsert();
+    EXPECT_LE(map.num_cells(), 100u);
+    EXPECT_EQ(map.num_patches(), map.num_cells());  // one surface per cell here
+  }
+  // The newest cells survive the count bound.
+  map.RemoveFarFrom({1999.0, 1.0, 0.0}, 50.0);
+  EXPECT_GT(map.num_cells(), 20u);
+  EXPECT_LE(map.num_cells(), 26u);
+  EXPECT_EQ(map.num_patches(), map.num_cells());
+  map.Clear();
+  EXPECT_EQ(map.num_patches(), 0u);
+  EXPECT_EQ(map.num_cells(), 0u);
+}
+
+TEST(PlanePatchMap, SkeletonResidualsUseThePatchOfTheirCellNotTheWindow) {
+  // The window holds last scan's ground fit z = 0.2 (tilted world, drifted pose); the patch map
+  // remembers the ground at z = 0. The skeleton point at z = 0.02 must be matched to the patch.
+  PpfConfig cfg;
+  SkeletonWindow window(cfg);
+  FittedPlane ground;
+  ground.plane = Plane{kUp, -0.2};
+  ground.num_inliers = 500;
+  ground.centroid = Eigen::Vector3d(0, 0, 0.2);
+  window.Update({ground}, Eigen::Isometry3d::Identity());
+  PlanePatchMap patches;
+  for (double x = 0.1; x < 2.0; x += 0.3)
+    for (double y = 0.1; y < 2.0; y += 0.3) patches.Insert({x, y, 0.0}, kUp);
+  patches.FinishInsert();
+
+  ScanFrame frame;
+  frame.points_lidar = {Eigen::Vector3f(1.0f, 1.0f, 0.02f), Eigen::Vector3f(5.0f, 5.0f, 0.1f)};
+  frame.labels = {PointLabel::kSkeleton, PointLabel::kSkeleton};
+  PrefitResult prefit;
+  prefit.planes = {ground};
+  prefit.skeleton_indices = {0, 1};
+  prefit.skeleton_plane = {0, 0};
+
+  for (const bool fallback : {false, true}) {
+    SkeletonResidualProvider provider(&window, 0.2);
+    provider.SetPrefitSource(&prefit, 10.0);
+    provider.SetPatchMap(&patches, fallback);
+    provider.BeginScan(frame);
+    std::vector<PointPlaneRow> rows;
+    provider.ComputeRows(Eigen::Isometry3d::Identity(), &rows);
+    const auto& m = provider.last_matches();
+    ASSERT_EQ(m.size(), fallback ? 2u : 1u);
+    EXPECT_EQ(m[0].point_index, 0);
+    EXPECT_EQ(m[0].plane_index, -1) << "matched to a patch";
+    EXPECT_NEAR(m[0].signed_distance, 0.02, 1e-6);
+    EXPECT_NEAR(rows[0].offset, 0.0, 1e-9);
+    if (fallback) {  // the point outside every patch cell: the window plane, as in Eq. 10
+      EXPECT_EQ(m[1].point_index, 1);
+      EXPECT_EQ(m[1].plane_index, 0);
+      EXPECT_NEAR(std::abs(m[1].signed_distance), 0.1, 1e-6);  // 10 cm below the window plane
+    }
+  }
+}
+
+}  // namespace
+}  // namespace ppf

@@ -106,8 +106,8 @@ int main(int argc, char** argv) {
     ppf::Config config;
     ppf::Trajectory gt;
     try {
-      std::cerr << "ppf_accuracy_study: ";
-      bag = ppf::tools::EnsureSequence(seq, duration, opts.workdir, std::cerr);
+      bag = ppf::tools::EnsureSequence(seq, duration, opts.workdir, std::cerr,
+                                       "ppf_accuracy_study: ");
       if (!ppf::tools::LoadSequenceConfig(opts.config_dir, seq.lidar, bag, opts.threads, &config,
                                           &error) ||
           !ppf::ReadTum(bag + "/groundtruth.tum", &gt, &error)) {

@@ -66,7 +66,7 @@ int main(int argc, char** argv) {
   for (const auto& seq : sequences) {
     std::string bag;
     try {
-      bag = ppf::tools::EnsureSequence(seq, duration, opts.workdir, std::cerr);
+      bag = ppf::tools::EnsureSequence(seq, duration, opts.workdir, std::cerr, "ppf_compare: ");
     } catch (const std::exception& e) {
       Fail(e.what());
     }

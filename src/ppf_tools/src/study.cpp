@@ -121,7 +121,7 @@ std::string StudyOptionsHelp(const std::string& default_sequences) {
 }
 
 std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::string& workdir,
-                           std::ostream& log) {
+                           std::ostream& log, const std::string& log_prefix) {
   std::ostringstream name;
   name << seq.scene << "_" << seq.lidar << "_" << static_cast<int>(duration) << "s";
   const fs::path dir = fs::path(workdir) / name.str();
@@ -133,7 +133,7 @@ std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::
   cmd << "ppf_sim --scene " << seq.scene << " --lidar " << seq.lidar << " --duration " << duration
       << " --seed 1 --storage mcap --out '" << dir.string() << "' > '" << dir.string()
       << ".sim.log' 2>&1";
-  log << "generating " << name.str() << " with ppf_sim...\n" << std::flush;
+  log << log_prefix << "generating " << name.str() << " with ppf_sim...\n" << std::flush;
   if (std::system(cmd.str().c_str()) != 0) {
     throw std::runtime_error("ppf_sim failed for " + name.str() + " (see " + dir.string() +
                              ".sim.log)");

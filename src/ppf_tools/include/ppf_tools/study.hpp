@@ -41,9 +41,10 @@ std::string StudyOptionsHelp(const std::string& default_sequences);
 
 // The sequence's directory under `workdir` (<scene>_<lidar>_<seconds>s), generated with ppf_sim
 // (seed 1, MCAP) unless a complete one is already there. ppf_sim is taken from PATH. Progress goes
-// to `log`. Throws std::runtime_error if ppf_sim fails (its log file is named in the message).
+// to `log`, each line starting with `log_prefix`. Throws std::runtime_error if ppf_sim fails (its
+// log file is named in the message).
 std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::string& workdir,
-                           std::ostream& log);
+                           std::ostream& log, const std::string& log_prefix = "");
 
 // config_dir/<lidar>.yaml, then <bag>/calibration.yaml (the simulated robot's T_imu_lidar) on top,
 // as a user layers a calibration over a preset. threads >= 0 overrides num_threads.

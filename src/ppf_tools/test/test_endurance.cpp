@@ -1,0 +1,82 @@
+// The local map's memory stays bounded on a long drive (issue 4). The full figure is a 10-minute
+// drive (ppf_endurance, recorded in the issue notes); CI runs a shorter drive with a smaller map
+// radius so that the drive still leaves the bound many times. Measured on this drive (kNN):
+// without the bound (map.radius 0) the map grows with every new street, +103 % from the first
+// half's maximum to the second's and VmRSS +13 MB over the second half; with the 75 m bound the
+// map follows the sensor, +7.2 % (PPF +4.8 %: the density of the streets varies) and +0.2 MB.
+#include <gtest/gtest.h>
+
+#include <iostream>
+#include <string>
+
+#include "ppf_core/config_yaml.hpp"
+#include "ppf_tools/endurance.hpp"
+
+#ifndef PPF_CONFIG_DIR
+#define PPF_CONFIG_DIR "config"
+#endif
+
+namespace {
+
+// 120 s of simulated time (860 m) with a 75 m map radius: the drive leaves the radius 10 times
+// (counted on the ground truth, so exactly). A smaller radius costs accuracy: 50 m gave 0.94 %
+// APE in PPF mode, 75 m 0.36 % (kNN 0.38 % / 0.16 %).
+constexpr double kDuration = 120.0;
+constexpr double kMapRadius = 75.0;
+
+struct Case {
+  std::string name;
+  ppf::Mode mode;
+};
+
+std::ostream& operator<<(std::ostream& os, const Case& c) { return os << c.name; }
+
+class Endurance : public ::testing::TestWithParam<Case> {};
+
+TEST_P(Endurance, MapAndMemoryStayBounded) {
+  ppf::Config config;
+  const auto report = ppf::LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/vlp16.yaml", &config);
+  ASSERT_TRUE(report.ok) << report.error;
+  config.mode = GetParam().mode;
+  config.map_radius = kMapRadius;
+
+  ppf::tools::EnduranceOptions opts;
+  opts.scene = "urban";
+  opts.lidar = "vlp16";
+  opts.duration = kDuration;
+  opts.roam_radius = 600.0;  // new ground all along (ppf_endurance's default)
+  opts.report_every = 30.0;
+  const auto rep = ppf::tools::RunEndurance(opts, config);
+
+  std::cout << "[ ENDURANCE ] " << GetParam().name << ": " << rep.distance << " m, left the "
+            << rep.map_radius << " m radius " << rep.radius_crossings << " times; map max "
+            << rep.max_map_first_half << " / " << rep.max_map_second_half << " points; VmRSS "
+            << rep.rss_half_mb << " -> max " << rep.rss_max_second_half_mb << " MB; APE "
+            << rep.ape.stats.rmse << " m (" << rep.ApePercent() << " %)\n";
+
+  EXPECT_EQ(rep.resets, 0u);
+  EXPECT_EQ(rep.rejected, 0u);
+  EXPECT_GE(rep.posed + 15, rep.scans);
+  // The bound was exercised: the drive left everything it had mapped behind several times.
+  EXPECT_GE(rep.radius_crossings, 8);
+  // Bounded by the radius, not by the LRU capacity (which bounds memory whatever happens).
+  EXPECT_LT(rep.max_map_first_half, rep.map_capacity_points / 10);
+  // The second half's map never exceeds the first half's maximum by more than 20 %.
+  ASSERT_GT(rep.max_map_first_half, 0u);
+  EXPECT_LE(static_cast<double>(rep.max_map_second_half),
+            1.20 * static_cast<double>(rep.max_map_first_half));
+  // Process memory over the second half (VmRSS): +0.2 MB measured with the bound, +13 MB without.
+  EXPECT_LT(rep.rss_max_second_half_mb - rep.rss_half_mb, 8.0);
+  // And the odometry stays within the issue's urban bound.
+  ASSERT_TRUE(rep.ape.ok) << rep.ape.error;
+  EXPECT_LE(rep.ApePercent(), 0.5);
+}
+
+INSTANTIATE_TEST_SUITE_P(Simulated, Endurance,
+                         ::testing::Values(Case{"urban_vlp16_knn", ppf::Mode::kKnn},
+                                           Case{"urban_vlp16_ppf", ppf::Mode::kPpf}),
+                         [](const ::testing::TestParamInfo<Case>& info) {
+                           return info.param.name;
+                         });
+
+}  // namespace

@@ -16,6 +16,7 @@
 #include <Eigen/Geometry>
 
 #include "ppf_core/cloud_view.hpp"
+#include "ppf_core/imu_propagation.hpp"
 #include "ppf_core/imu_sample.hpp"
 #include "ppf_core/so3.hpp"
 
@@ -107,6 +108,24 @@ inline ImuSample ImuFromPose(const PoseFn& pose, double t, const Eigen::Vector3d
       (Tp.translation() - 2.0 * T0.translation() + Tm.translation()) / (h * h);
   s.linear_acceleration = T0.linear().transpose() * (acc_world - g);
   return s;
+}
+
+// The pose trace the filter's IMU propagation gives from the true state at t0 to t_end, with
+// 200 Hz noiseless IMU samples of `pose` (what de-skew uses).
+inline PoseTrace TraceFromTruth(const PoseFn& pose, double t0, double t_end) {
+  std::vector<ImuSample> imu;
+  for (int i = 0; t0 - 0.03 + i / 200.0 <= t_end + 0.2; ++i) {
+    imu.push_back(ImuFromPose(pose, t0 - 0.03 + i / 200.0));
+  }
+  NavState s;
+  s.stamp_s = t0;
+  s.R_world_imu = pose(t0).linear();
+  s.p_world_imu = pose(t0).translation();
+  s.v_world = (pose(t0 + 1e-4).translation() - pose(t0 - 1e-4).translation()) / 2e-4;
+  s.gravity_world = kGravity;
+  PoseTrace trace;
+  PropagateImu(imu, t_end, 1.0, ImuNoise(), &s, &trace);
+  return trace;
 }
 
 struct SimPoint {

@@ -28,16 +28,7 @@ TEST(Deskew, MovingScanMatchesStaticScanAtScanEnd) {
   std::vector<TimedPoint> timed;
   for (const auto& p : pts) timed.push_back({p.p, 0.f, p.t});
 
-  std::vector<ImuSample> imu;
-  for (int i = 0; i <= 60; ++i) imu.push_back(test::ImuFromPose(pose, 0.97 + i / 200.0));
-  NavState s;
-  s.stamp_s = t0;
-  s.R_world_imu = pose(t0).linear();
-  s.p_world_imu = pose(t0).translation();
-  s.v_world = (pose(t0 + 1e-4).translation() - pose(t0 - 1e-4).translation()) / 2e-4;
-  s.gravity_world = test::kGravity;
-  PoseTrace trace;
-  PropagateImu(imu, t_end, 1.0, ImuNoise(), &s, &trace);
+  const PoseTrace trace = test::TraceFromTruth(pose, t0, t_end);
 
   std::vector<Eigen::Vector3f> deskewed;
   DeskewToEnd(timed, trace, t_end, T_imu_lidar, &deskewed);

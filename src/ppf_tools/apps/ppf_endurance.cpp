@@ -27,7 +27,8 @@ constexpr const char* kUsage = R"(usage: ppf_endurance [options]
 
 Simulates a drive with ppf_sim's generator and streams it into ppf::LioPpf in the same process
 (nothing is written to disk). Every minute of simulated time it prints the distance driven, the
-local map (points, voxels), the process memory (VmRSS) and the APE of the trajectory so far; at the
+local map (points, voxels; in PPF mode also the plane patches), the process memory (VmRSS) and the APE
+of the trajectory so far; at the
 end the map maximum in each half of the drive, the memory growth over the second half, how
 often the drive left the map's bound radius, and the APE against the exact ground truth.
 
@@ -40,7 +41,7 @@ often the drive left the map's bound radius, and the APE against the exact groun
   --config FILE       core config (default: <config-dir>/<lidar>.yaml); the simulator's LiDAR
                       mount replaces its extrinsic
   --config-dir DIR    LiDAR presets (default: the repository's config/)
-  --map-radius M      override map.radius of the config
+  --map-radius M      override map.radius (and ppf.patch_radius) of the config
   --threads N         OpenMP threads for the core (default: the config's)
   --seed N            simulation seed (default 1)
   --report-every S    simulated seconds between rows (default 60)
@@ -120,7 +121,7 @@ int main(int argc, char** argv) {
   const auto report = ppf::LoadConfigYaml(config_file, &config);
   if (!report.ok) Fail(config_file + ": " + report.error);
   config.mode = mode == "ppf" ? ppf::Mode::kPpf : ppf::Mode::kKnn;
-  if (map_radius >= 0.0) config.map_radius = map_radius;
+  if (map_radius >= 0.0) config.map_radius = config.ppf.patch_radius = map_radius;
   if (threads >= 0) config.num_threads = threads;
 
   std::cout << "ppf_endurance: " << opts.scene << " " << opts.lidar << " " << mode << ", "
@@ -129,17 +130,17 @@ int main(int argc, char** argv) {
             << " points, roam radius " << opts.roam_radius << " m, seed " << opts.seed << "\n\n";
   std::cout << std::right << std::setw(8) << "sim s" << std::setw(9) << "dist km" << std::setw(11)
             << "map pts" << std::setw(10) << "voxels" << std::setw(11) << "max pts" << std::setw(9)
-            << "RSS MB" << std::setw(10) << "APE m" << std::setw(8) << "posed" << std::setw(9)
-            << "wall s"
+            << "patches" << std::setw(9) << "RSS MB" << std::setw(10) << "APE m" << std::setw(8)
+            << "posed" << std::setw(9) << "wall s"
             << "\n"
             << std::flush;
   auto print_row = [](const ppf::tools::EnduranceRow& r) {
     std::cout << std::fixed << std::setprecision(0) << std::setw(8) << r.sim_time
               << std::setprecision(2) << std::setw(9) << r.distance / 1000.0 << std::setw(11)
               << r.map_points << std::setw(10) << r.map_voxels << std::setw(11) << r.max_map_points
-              << std::setprecision(1) << std::setw(9) << r.rss_mb << std::setprecision(2)
-              << std::setw(10) << r.ape_rmse << std::setw(8) << r.posed << std::setprecision(0)
-              << std::setw(9) << r.wall_s << "\n"
+              << std::setw(9) << r.patches << std::setprecision(1) << std::setw(9) << r.rss_mb
+              << std::setprecision(2) << std::setw(10) << r.ape_rmse << std::setw(8) << r.posed
+              << std::setprecision(0) << std::setw(9) << r.wall_s << "\n"
               << std::flush;
   };
 
@@ -165,6 +166,11 @@ int main(int argc, char** argv) {
             << growth_pct << std::noshowpos << " %); voxels max " << rep.max_voxels_first_half
             << " / " << rep.max_voxels_second_half << "; LRU bound " << rep.map_capacity_points
             << " points\n";
+  if (config.mode == ppf::Mode::kPpf) {
+    std::cout << "plane patches: max " << rep.max_patches_first_half << " in the first half, "
+              << rep.max_patches_second_half << " in the second (patch radius "
+              << config.ppf.patch_radius << " m)\n";
+  }
   std::cout << std::setprecision(1) << "VmRSS: " << rep.rss_start_mb << " MB at the start, "
             << rep.rss_half_mb << " MB at half time, max " << rep.rss_max_second_half_mb
             << " MB in the second half (growth " << std::showpos

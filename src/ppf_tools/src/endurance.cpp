@@ -119,10 +119,12 @@ EnduranceReport RunEndurance(const EnduranceOptions& options, const Config& conf
       if (!second) {
         rep.max_map_first_half = std::max(rep.max_map_first_half, r.map_size);
         rep.max_voxels_first_half = std::max(rep.max_voxels_first_half, voxels);
+        rep.max_patches_first_half = std::max(rep.max_patches_first_half, r.skeleton_patches);
         rep.rss_half_mb = rss;  // the last value before the second half starts
       } else {
         rep.max_map_second_half = std::max(rep.max_map_second_half, r.map_size);
         rep.max_voxels_second_half = std::max(rep.max_voxels_second_half, voxels);
+        rep.max_patches_second_half = std::max(rep.max_patches_second_half, r.skeleton_patches);
         rep.rss_max_second_half_mb = std::max(rep.rss_max_second_half_mb, rss);
       }
       max_map = std::max(max_map, r.map_size);
@@ -138,6 +140,7 @@ EnduranceReport RunEndurance(const EnduranceOptions& options, const Config& conf
         row.map_points = r.map_size;
         row.map_voxels = voxels;
         row.max_map_points = max_map;
+        row.patches = r.skeleton_patches;
         row.rss_mb = rss;
         EvalOptions eval;
         eval.align = Alignment::kSE3;

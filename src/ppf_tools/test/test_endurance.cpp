@@ -39,6 +39,7 @@ TEST_P(Endurance, MapAndMemoryStayBounded) {
   ASSERT_TRUE(report.ok) << report.error;
   config.mode = GetParam().mode;
   config.map_radius = kMapRadius;
+  config.ppf.patch_radius = kMapRadius;  // PPF's plane patch map has its own radius bound
 
   ppf::tools::EnduranceOptions opts;
   opts.scene = "urban";
@@ -50,7 +51,8 @@ TEST_P(Endurance, MapAndMemoryStayBounded) {
 
   std::cout << "[ ENDURANCE ] " << GetParam().name << ": " << rep.distance << " m, left the "
             << rep.map_radius << " m radius " << rep.radius_crossings << " times; map max "
-            << rep.max_map_first_half << " / " << rep.max_map_second_half << " points; VmRSS "
+            << rep.max_map_first_half << " / " << rep.max_map_second_half << " points, patches "
+            << rep.max_patches_first_half << " / " << rep.max_patches_second_half << "; VmRSS "
             << rep.rss_half_mb << " -> max " << rep.rss_max_second_half_mb << " MB; APE "
             << rep.ape.stats.rmse << " m (" << rep.ApePercent() << " %)\n";
 
@@ -65,6 +67,12 @@ TEST_P(Endurance, MapAndMemoryStayBounded) {
   ASSERT_GT(rep.max_map_first_half, 0u);
   EXPECT_LE(static_cast<double>(rep.max_map_second_half),
             1.20 * static_cast<double>(rep.max_map_first_half));
+  // PPF mode's plane patches: the same kind of bound.
+  if (GetParam().mode == ppf::Mode::kPpf) {
+    ASSERT_GT(rep.max_patches_first_half, 0u);
+    EXPECT_LE(static_cast<double>(rep.max_patches_second_half),
+              1.20 * static_cast<double>(rep.max_patches_first_half));
+  }
   // Process memory over the second half (VmRSS): +0.2 MB measured with the bound, +13 MB without.
   EXPECT_LT(rep.rss_max_second_half_mb - rep.rss_half_mb, 8.0);
   // And the odometry stays within the urban bound.

@@ -31,6 +31,7 @@ struct EnduranceRow {
   size_t map_points = 0;      // ScanResult::map_size of the last scan
   size_t map_voxels = 0;      // LioPpf::map().num_voxels()
   size_t max_map_points = 0;  // since the start
+  size_t patches = 0;         // ScanResult::skeleton_patches (PPF mode's plane patch map)
   double rss_mb = 0;          // VmRSS
   double ape_rmse = 0;        // m, SE(3)-aligned APE of the trajectory so far (-1: too short)
   double wall_s = 0;          // since the drive started
@@ -44,6 +45,8 @@ struct EnduranceReport {
   // Local map over the two halves of the drive (by simulated time).
   size_t max_map_first_half = 0, max_map_second_half = 0;
   size_t max_voxels_first_half = 0, max_voxels_second_half = 0;
+  // PPF mode: plane patches (the skeleton points' share of the map, bounded by ppf.patch_radius).
+  size_t max_patches_first_half = 0, max_patches_second_half = 0;
   size_t map_capacity_points = 0;  // the LRU bound max_voxels * max_points_per_voxel
   // Process memory: VmRSS when the second half starts and its maximum over the second half.
   double rss_half_mb = 0, rss_max_second_half_mb = 0, rss_start_mb = 0, rss_end_mb = 0;

@@ -135,8 +135,14 @@ std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::
       << ".sim.log' 2>&1";
   log << log_prefix << "generating " << name.str() << " with ppf_sim...\n" << std::flush;
   if (std::system(cmd.str().c_str()) != 0) {
-    throw std::runtime_error("ppf_sim failed for " + name.str() + " (see " + dir.string() +
-                             ".sim.log)");
+    // The log's last line usually says why ("ppf_sim: not found" when it is not on PATH).
+    std::ifstream sim_log(dir.string() + ".sim.log");
+    std::string line, last;
+    while (std::getline(sim_log, line)) {
+      if (!line.empty()) last = line;
+    }
+    throw std::runtime_error("ppf_sim failed for " + name.str() + ": " + last + " (see " +
+                             dir.string() + ".sim.log)");
   }
   return dir.string();
 }

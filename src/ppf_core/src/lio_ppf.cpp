@@ -308,7 +308,7 @@ struct LioPpf::Impl {
     pre.max_range = config.max_range;
     pre.point_stride = config.point_stride;
     pre.voxel_size = config.scan_voxel_size;
-    const PreprocessStats pre_stats = downsampler.Run(scan.points, pre, &pts);
+    const PreprocessStats pre_stats = downsampler.Run(scan.points, scan.t_begin, pre, &pts);
     r.valid_points = pre_stats.valid_points;
     r.downsampled_points = pre_stats.downsampled_points;
     r.timings.preprocess = q.decode_ms;

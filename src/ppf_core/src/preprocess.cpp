@@ -41,7 +41,7 @@ void VoxelGridDownsampler::Reserve(size_t expected_voxels) {
   }
 }
 
-PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in,
+PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, double t_begin,
                                           const PreprocessOptions& options,
                                           std::vector<TimedPoint>* out) {
   PreprocessStats stats;
@@ -70,8 +70,7 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in,
   acc_.clear();
   Reserve(in.size() / stride / 8);
   const float inv = static_cast<float>(1.0 / options.voxel_size);
-  double t_ref = in.empty() ? 0.0 : in.front().t;  // earliest time: buckets count from it
-  for (const TimedPoint& tp : in) t_ref = std::min(t_ref, tp.t);
+  const double t_ref = t_begin;
   const double inv_bucket = options.time_bucket_s > 0.0 ? 1.0 / options.time_bucket_s : 0.0;
   for (size_t i = 0; i < in.size(); i += stride) {
     const TimedPoint& tp = in[i];

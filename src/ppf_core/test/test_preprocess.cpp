@@ -28,7 +28,7 @@ TEST(Preprocess, VoxelCentroidCarriesMeanTimeAndIntensity) {
   options.min_range = 0.0;
   VoxelGridDownsampler ds;
   std::vector<TimedPoint> out;
-  const PreprocessStats stats = ds.Run(in, options, &out);
+  const PreprocessStats stats = ds.Run(in, 5.0, options, &out);
   ASSERT_EQ(out.size(), 2u);
   EXPECT_EQ(stats.valid_points, 4u);
   EXPECT_EQ(stats.downsampled_points, 2u);
@@ -50,7 +50,7 @@ TEST(Preprocess, RangeAndStrideFilterBeforeTheGrid) {
   options.point_stride = 2;
   VoxelGridDownsampler ds;
   std::vector<TimedPoint> out;
-  const PreprocessStats stats = ds.Run(in, options, &out);
+  const PreprocessStats stats = ds.Run(in, 0.0, options, &out);
   // Even indices 10..50 (x = 1.0 .. 5.0 m) survive.
   ASSERT_EQ(out.size(), 21u);
   EXPECT_EQ(stats.valid_points, 21u);
@@ -76,7 +76,7 @@ TEST(Preprocess, SameVoxelsAsTheMapDownsamplerAndGrowsPastItsFirstTableSize) {
   VoxelGridDownsampler ds;
   std::vector<TimedPoint> out;
   for (int call = 0; call < 2; ++call) {  // the second call reuses the grown table
-    ds.Run(in, options, &out);
+    ds.Run(in, 100.0, options, &out);
     const auto reference = VoxelDownsample(plain, 0.2);
     ASSERT_EQ(out.size(), reference.size());
     std::set<std::tuple<int, int, int>> keys;
@@ -105,6 +105,7 @@ TEST(Preprocess, DownsampleThenDeskewEqualsDeskewThenDownsample) {
   const double t_end = pts.back().t;
   std::vector<TimedPoint> timed;
   for (const auto& p : pts) timed.push_back({p.p, 0.f, p.t});
+  const double t_first = timed.front().t;  // firings are in time order
 
   const PoseTrace trace = test::TraceFromTruth(pose, t0, t_end);
 
@@ -114,7 +115,7 @@ TEST(Preprocess, DownsampleThenDeskewEqualsDeskewThenDownsample) {
   options.min_range = 0.0;
   VoxelGridDownsampler ds;
   std::vector<TimedPoint> kept;
-  ds.Run(timed, options, &kept);
+  ds.Run(timed, t_first, options, &kept);
   std::vector<Eigen::Vector3f> fast;
   DeskewToEnd(kept, trace, t_end, T_imu_lidar, &fast);
 
@@ -127,7 +128,7 @@ TEST(Preprocess, DownsampleThenDeskewEqualsDeskewThenDownsample) {
   std::map<std::tuple<int, int, int, int>, size_t> slot;
   for (size_t i = 0; i < timed.size(); ++i) {
     const VoxelKey k = ToVoxelKey(timed[i].p, 2.0);
-    const int bucket = static_cast<int>((timed[i].t - t0) / options.time_bucket_s);
+    const int bucket = static_cast<int>((timed[i].t - t_first) / options.time_bucket_s);
     const auto it = slot.emplace(std::make_tuple(k.x, k.y, k.z, bucket), slot.size()).first;
     sum[it->second] += all[i].cast<double>();
     t_min[it->second] = std::min(t_min[it->second], timed[i].t);
@@ -147,7 +148,7 @@ TEST(Preprocess, DownsampleThenDeskewEqualsDeskewThenDownsample) {
   // The split costs few points: only voxels on the seam and at mid-sweep are cut in two.
   options.time_bucket_s = 0.0;
   std::vector<TimedPoint> mixed;
-  ds.Run(timed, options, &mixed);
+  ds.Run(timed, t_first, options, &mixed);
   EXPECT_LT(mixed.size(), kept.size());
   EXPECT_LT(kept.size() - mixed.size(), kept.size() / 20);
 }

@@ -41,8 +41,9 @@ struct PreprocessStats {
 class VoxelGridDownsampler {
  public:
   // Returns the filtered (and, if voxel_size > 1 mm, downsampled) points of `in` in `out`.
-  PreprocessStats Run(const std::vector<TimedPoint>& in, const PreprocessOptions& options,
-                      std::vector<TimedPoint>* out);
+  // t_begin: the earliest point time (DecodedScan::t_begin); time buckets count from it.
+  PreprocessStats Run(const std::vector<TimedPoint>& in, double t_begin,
+                      const PreprocessOptions& options, std::vector<TimedPoint>* out);
 
  private:
   struct Slot {

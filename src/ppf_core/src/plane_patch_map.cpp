@@ -30,10 +30,7 @@ void PlanePatchMap::Insert(const Eigen::Vector3d& p_world, const Eigen::Vector3d
   if (!p_world.allFinite() || !n_world.allFinite()) return;
   const uint64_t key = KeyOf(p_world);
   Cell& cell = cells_[key];
-  if (cell.last_insert != generation_ + 1) {
-    cell.last_insert = generation_ + 1;
-    touched_.push_back(key);
-  }
+  cell.last_insert = generation_ + 1;
   const double min_cos = std::cos(options_.same_surface_deg * M_PI / 180.0);
   Patch* patch = nullptr;
   for (Patch& candidate : cell.patches) {
@@ -50,7 +47,11 @@ void PlanePatchMap::Insert(const Eigen::Vector3d& p_world, const Eigen::Vector3d
     ++num_patches_;
     patch = &cell.patches.back();
   }
-  if (patch->moments.count >= options_.max_points) return;  // frozen
+  if (patch->moments.count >= options_.max_points) return;  // frozen: nothing to refit
+  if (cell.changed != generation_ + 1) {
+    cell.changed = generation_ + 1;
+    touched_.push_back(key);
+  }
   // Normals of one surface may arrive with either sign (planes are fitted per scan).
   patch->normal_sum += patch->normal_sum.dot(n_world) < 0.0 ? -n_world : n_world;
   PlaneMoments one;

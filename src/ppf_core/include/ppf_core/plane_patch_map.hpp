@@ -77,6 +77,7 @@ class PlanePatchMap {
   struct Cell {
     std::vector<Patch> patches;
     uint64_t last_insert = 0;  // insert generation, for the max_cells bound
+    uint64_t changed = 0;      // generation whose points changed a patch: refit at FinishInsert
   };
   uint64_t KeyOf(const Eigen::Vector3d& p) const;
   void Refit(Patch* patch) const;
@@ -84,7 +85,7 @@ class PlanePatchMap {
   PlanePatchMapOptions options_;
   double inv_cell_ = 0.5;
   std::unordered_map<uint64_t, Cell> cells_;
-  std::vector<uint64_t> touched_;
+  std::vector<uint64_t> touched_;  // cells with a changed patch since the last FinishInsert
   uint64_t generation_ = 0;
   size_t num_patches_ = 0;
 };

@@ -36,15 +36,13 @@ std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitt
                                             const Eigen::Isometry3d& T_world_lidar) {
   const size_t nf = fitted.size();
   std::vector<Plane> world(nf);
-  std::vector<Eigen::Vector3d> centroid(nf);
-  std::vector<PlaneMoments> moments(nf);
+  std::vector<PlaneMoments> moments(nf);  // world: centroid and scatter of the inliers
   for (size_t i = 0; i < nf; ++i) {
     Plane pl = fitted[i].plane;
     // New tracks face the sensor (sensor origin on the positive side): a convention users can
     // rely on, and it makes the orientation independent of RANSAC's sample order.
     if (pl.d < 0.0) pl = pl.Flipped();
     world[i] = TransformPlane(T_world_lidar, pl);
-    centroid[i] = T_world_lidar * fitted[i].centroid;
     PlaneMoments m;
     m.count = fitted[i].num_inliers;
     m.centroid = fitted[i].centroid;
@@ -77,7 +75,7 @@ std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitt
     for (size_t j = 0; j < planes_.size(); ++j) {
       if (claimed[j]) continue;
       const double angle = PlaneAngle(world[i], planes_[j].plane);
-      const double offset = planes_[j].plane.Distance(centroid[i]);
+      const double offset = planes_[j].plane.Distance(moments[i].centroid);
       if (angle > max_angle || offset > max_offset) continue;
       const double cost =
           (max_angle > 0 ? angle / max_angle : 0.0) + (max_offset > 0 ? offset / max_offset : 0.0);
@@ -115,7 +113,7 @@ std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitt
         Plane pl = world[i];
         if (pl.n.dot(sp.plane.n) < 0.0) pl = pl.Flipped();  // keep the track's orientation
         sp.plane = pl;
-        sp.centroid = centroid[i];
+        sp.centroid = moments[i].centroid;
         sp.scatter = moments[i].scatter;
         sp.incremental = fitted[i].from_guess;
         sp.num_inliers = fitted[i].num_inliers;
@@ -128,7 +126,7 @@ std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitt
       SkeletonPlane sp;
       sp.track_id = next_track_id_++;
       sp.plane = world[i];
-      sp.centroid = centroid[i];
+      sp.centroid = moments[i].centroid;
       sp.scatter = moments[i].scatter;
       sp.num_inliers = fitted[i].num_inliers;
       sp.hits = 1;

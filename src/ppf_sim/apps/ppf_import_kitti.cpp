@@ -1,8 +1,5 @@
 // ppf_import_kitti: KITTI raw drive folder -> rosbag2 (PointCloud2 on /points, Imu on /imu).
-#include <cstdio>
-
-#include "cli_args.hpp"
-#include "ppf_sim/importers.hpp"
+#include "import_cli.hpp"
 
 static const char* kHelp = R"(usage: ppf_import_kitti --raw DIR --out BAG [options]
 
@@ -31,39 +28,26 @@ Options
   --points-topic T     [/points]      --imu-topic T   [/imu]
 )";
 
+namespace {
+
+using namespace ppf::sim;
+
+ImportSummary Import(const CliArgs& args, const std::string& raw, const std::string& out,
+                     const BagOutputOptions& bag) {
+  KittiOptions opt;
+  const std::string axes = args.Str("imu-axes", "body");
+  if (axes != "body" && axes != "leveled")
+    throw std::invalid_argument("--imu-axes: body | leveled");
+  opt.imu_body_axes = axes == "body";
+  opt.scan_period = args.Num("period", 0.1);
+  opt.lidar_frame = args.Str("lidar-frame", "velodyne");
+  opt.imu_frame = args.Str("imu-frame", "imu");
+  return ImportKittiRaw(raw, out, bag, opt);
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
-  using namespace ppf::sim;
-  try {
-    const CliArgs args(argc, argv,
-                       {"raw", "out", "storage", "compression", "imu-axes", "period",
-                        "lidar-frame", "imu-frame", "points-topic", "imu-topic"},
-                       {"help"});
-    if (args.Has("help")) {
-      std::fputs(kHelp, stdout);
-      return 0;
-    }
-    if (!args.Has("raw") || !args.Has("out"))
-      throw std::invalid_argument("--raw DIR and --out BAG are required (see --help)");
-    BagOutputOptions bag;
-    bag.storage = args.Str("storage", "mcap");
-    bag.compression = args.Str("compression", "none");
-    bag.points_topic = args.Str("points-topic", "/points");
-    bag.imu_topic = args.Str("imu-topic", "/imu");
-    KittiOptions opt;
-    const std::string axes = args.Str("imu-axes", "body");
-    if (axes != "body" && axes != "leveled") throw std::invalid_argument("--imu-axes: body | leveled");
-    opt.imu_body_axes = axes == "body";
-    opt.scan_period = args.Num("period", 0.1);
-    opt.lidar_frame = args.Str("lidar-frame", "velodyne");
-    opt.imu_frame = args.Str("imu-frame", "imu");
-    const ImportSummary s = ImportKittiRaw(args.Str("raw", ""), args.Str("out", ""), bag, opt);
-    for (const auto& n : s.notes) std::printf("note: %s\n", n.c_str());
-    std::printf("%d clouds (%.0f points/scan), %d IMU samples -> %s\n", s.clouds,
-                s.clouds ? static_cast<double>(s.points) / s.clouds : 0.0, s.imu_samples,
-                args.Str("out", "").c_str());
-    return 0;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "ppf_import_kitti: error: %s\n", e.what());
-    return 2;
-  }
+  return RunImporter(argc, argv, "ppf_import_kitti", kHelp, "raw",
+                     {"imu-axes", "period", "lidar-frame", "imu-frame"}, Import);
 }

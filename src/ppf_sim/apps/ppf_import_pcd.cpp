@@ -1,8 +1,5 @@
 // ppf_import_pcd: a directory of PCD scans (+ optional IMU CSV) -> rosbag2.
-#include <cstdio>
-
-#include "cli_args.hpp"
-#include "ppf_sim/importers.hpp"
+#include "import_cli.hpp"
 
 static const char* kHelp = R"(usage: ppf_import_pcd --dir DIR --out BAG [options]
 
@@ -30,38 +27,24 @@ Options
   --points-topic T   [/points]      --imu-topic T   [/imu]
 )";
 
+namespace {
+
+using namespace ppf::sim;
+
+ImportSummary Import(const CliArgs& args, const std::string& dir, const std::string& out,
+                     const BagOutputOptions& bag) {
+  PcdOptions opt;
+  opt.imu_csv = args.Str("imu", "");
+  opt.stamps_file = args.Str("stamps", "");
+  opt.scan_period = args.Num("period", 0.1);
+  opt.lidar_frame = args.Str("lidar-frame", "lidar");
+  opt.imu_frame = args.Str("imu-frame", "imu");
+  return ImportPcdDirectory(dir, out, bag, opt);
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
-  using namespace ppf::sim;
-  try {
-    const CliArgs args(argc, argv,
-                       {"dir", "out", "imu", "stamps", "period", "storage", "compression",
-                        "lidar-frame", "imu-frame", "points-topic", "imu-topic"},
-                       {"help"});
-    if (args.Has("help")) {
-      std::fputs(kHelp, stdout);
-      return 0;
-    }
-    if (!args.Has("dir") || !args.Has("out"))
-      throw std::invalid_argument("--dir DIR and --out BAG are required (see --help)");
-    BagOutputOptions bag;
-    bag.storage = args.Str("storage", "mcap");
-    bag.compression = args.Str("compression", "none");
-    bag.points_topic = args.Str("points-topic", "/points");
-    bag.imu_topic = args.Str("imu-topic", "/imu");
-    PcdOptions opt;
-    opt.imu_csv = args.Str("imu", "");
-    opt.stamps_file = args.Str("stamps", "");
-    opt.scan_period = args.Num("period", 0.1);
-    opt.lidar_frame = args.Str("lidar-frame", "lidar");
-    opt.imu_frame = args.Str("imu-frame", "imu");
-    const ImportSummary s = ImportPcdDirectory(args.Str("dir", ""), args.Str("out", ""), bag, opt);
-    for (const auto& n : s.notes) std::printf("note: %s\n", n.c_str());
-    std::printf("%d clouds (%.0f points/scan), %d IMU samples -> %s\n", s.clouds,
-                s.clouds ? static_cast<double>(s.points) / s.clouds : 0.0, s.imu_samples,
-                args.Str("out", "").c_str());
-    return 0;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "ppf_import_pcd: error: %s\n", e.what());
-    return 2;
-  }
+  return RunImporter(argc, argv, "ppf_import_pcd", kHelp, "dir",
+                     {"imu", "stamps", "period", "lidar-frame", "imu-frame"}, Import);
 }

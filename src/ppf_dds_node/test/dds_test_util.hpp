@@ -1,6 +1,9 @@
 // Test-side DDS endpoints: a participant on the test profile, typed writers that report matches,
-// and readers that collect every sample with its receive time.
+// and readers that collect every sample with its receive time. Includers define
+// PPF_DDS_CONFIG_DIR (config/dds of the workspace).
 #pragma once
+
+#include <stdlib.h>
 
 #include <atomic>
 #include <chrono>
@@ -25,6 +28,17 @@
 namespace ppf::test {
 
 namespace fdds = eprosima::fastdds::dds;
+
+// The loopback transport profile every cross-process test runs on.
+inline const char* const kProfiles = PPF_DDS_CONFIG_DIR "/test_loopback.xml";
+inline const char* const kProfile = "ppf_test_loopback";
+
+// A fresh directory /tmp/<prefix>_XXXXXX (mkdtemp); "/tmp" if it cannot be made.
+inline std::string TempDir(const std::string& prefix) {
+  std::string tmpl = "/tmp/" + prefix + "_XXXXXX";
+  const char* d = mkdtemp(tmpl.data());
+  return d ? d : "/tmp";
+}
 
 class WriterMatches : public fdds::DataWriterListener {
  public:

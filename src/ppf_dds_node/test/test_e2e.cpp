@@ -24,18 +24,11 @@
 
 using namespace std::chrono_literals;
 using ppf::test::ChildProcess;
+using ppf::test::kProfile;
+using ppf::test::kProfiles;
 using ppf::test::SummaryField;
 
 namespace {
-
-const char* kProfiles = PPF_DDS_CONFIG_DIR "/test_loopback.xml";
-const char* kProfile = "ppf_test_loopback";
-
-std::string TempDir() {
-  char tmpl[] = "/tmp/ppf_dds_e2e_XXXXXX";
-  const char* d = mkdtemp(tmpl);
-  return d ? d : "/tmp";
-}
 
 long VmRssKb(pid_t pid) {
   std::ifstream in("/proc/" + std::to_string(pid) + "/status");
@@ -155,7 +148,7 @@ class EndToEnd : public ::testing::Test {
     eval_ = ppf::test::FindTool("ppf_eval", PPF_EVAL_CONFIGURED);
     offline_ = ppf::test::FindTool("ppf_offline", PPF_OFFLINE_CONFIGURED);
     if (sim_.empty()) return;
-    dir_ = TempDir();
+    dir_ = ppf::test::TempDir("ppf_dds_e2e");
     // Urban, car, HDL-32, 10 s (2.5 s static start for initialization): a sequence of the
     // core's accuracy suite (ppf_tools test_accuracy, bound 0.5 % of the path).
     ChildProcess sim;

@@ -26,22 +26,16 @@
 using namespace std::chrono_literals;
 using ppf::test::ChildProcess;
 using ppf::test::Collector;
+using ppf::test::kProfile;
+using ppf::test::kProfiles;
 using ppf::test::SummaryField;
+using ppf::test::TempDir;
 using ppf::test::TestParticipant;
 using ppf::test::WaitUntil;
 using ppf::test::WriterMatches;
 namespace fdds = eprosima::fastdds::dds;
 
 namespace {
-
-const char* kProfiles = PPF_DDS_CONFIG_DIR "/test_loopback.xml";
-const char* kProfile = "ppf_test_loopback";
-
-std::string TempDir() {
-  char tmpl[] = "/tmp/ppf_node_test_XXXXXX";
-  const char* d = mkdtemp(tmpl);
-  return d ? d : "/tmp";
-}
 
 bool AllFinite(const nav_msgs::msg::Odometry& o) {
   const auto& p = o.pose().pose();
@@ -78,27 +72,77 @@ size_t CountLines(const std::string& file) {
   return n;
 }
 
-}  // namespace
-
-TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput) {
-  const int domain = ppf::test::TestDomainId(11);
-  const std::string dir = TempDir();
-  const std::string tum = dir + "/trajectory.tum";
+// Starts ppf_node on <dir>/node.yaml: the loopback test profile on `domain`, then the YAML lines
+// `more`; its log goes to <dir>/node.log. Returns once the node is ready.
+void StartNode(ChildProcess& node, const std::string& dir, int domain, const std::string& more) {
   const std::string cfg = dir + "/node.yaml";
   {
     std::ofstream out(cfg);
     out << "dds: {domain_id: " << domain << ", profiles_file: \"" << kProfiles
         << "\", profile_name: " << kProfile << "}\n"
-        << "frames: {odom_frame: odom_test, base_frame: imu_link}\n"
-        << "outputs: {registered_points: true, path_max_poses: 5}\n"
-        << "queues: {scan_capacity: 100}\n"  // a slow CI machine must not turn into drops here
-        << "trajectory: {tum_file: \"" << tum << "\"}\n"
-        << "diagnostics: {period_s: 1.0}\n";
+        << more;
   }
-  ChildProcess node;
   ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", cfg}, {}, dir + "/node.log"));
   std::string line;
   ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
+}
+
+// SIGINT; the node prints its summary (returned in *summary, echoed to the test log) and exits 0.
+void StopNode(ChildProcess& node, std::string* summary) {
+  node.Signal(SIGINT);
+  ASSERT_TRUE(node.WaitForLine("PPF_NODE_SUMMARY", summary, 30s));
+  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 0));
+  std::printf("%s\n", summary->c_str());
+}
+
+// A VLP-16-sized scan of the synthetic room; DriveStaticRoom stamps it.
+sensor_msgs::msg::PointCloud2 Vlp16RoomScan() {
+  ppf::dds::SyntheticLidar lidar;
+  lidar.rings = 16;
+  lidar.columns = 1024;
+  lidar.min_elevation_deg = -15;
+  lidar.max_elevation_deg = 15;
+  return ppf::dds::MakeRoomScan(lidar, 0);
+}
+
+constexpr int64_t kT0 = 1700000000LL * 1000000000LL;
+
+// Publishes a static drive in real time, stamps from kT0: resting IMU every 5 ms and, after 1.5 s
+// of rest (initialization), `scans` scans at 10 Hz: `cloud` again each time, stamped with that
+// scan's start. *seq numbers the IMU samples; *imu_t ends as the next IMU sample's stamp.
+void DriveStaticRoom(fdds::DataWriter* imu_w, fdds::DataWriter* cloud_w,
+                     sensor_msgs::msg::PointCloud2& cloud, int scans, uint64_t* seq,
+                     int64_t* imu_t) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  *imu_t = kT0;
+  for (int s = 0; s <= scans; ++s) {
+    const int64_t scan_end = kT0 + 1500000000LL + s * 100000000LL;
+    while (*imu_t <= scan_end) {
+      sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(*imu_t, (*seq)++);
+      ASSERT_TRUE(imu_w->write(&imu));
+      *imu_t += 5000000;
+    }
+    std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(scan_end - kT0));
+    if (s == 0) continue;
+    cloud.header().stamp(ppf::bridge::TimeFromNanoseconds(scan_end - 100000000LL));
+    ASSERT_TRUE(cloud_w->write(&cloud));
+  }
+}
+
+}  // namespace
+
+TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput) {
+  const int domain = ppf::test::TestDomainId(11);
+  const std::string dir = TempDir("ppf_node_test");
+  const std::string tum = dir + "/trajectory.tum";
+  std::ostringstream more;
+  more << "frames: {odom_frame: odom_test, base_frame: imu_link}\n"
+       << "outputs: {registered_points: true, path_max_poses: 5}\n"
+       << "queues: {scan_capacity: 100}\n"  // a slow CI machine must not turn into drops here
+       << "trajectory: {tum_file: \"" << tum << "\"}\n"
+       << "diagnostics: {period_s: 1.0}\n";
+  ChildProcess node;
+  ASSERT_NO_FATAL_FAILURE(StartNode(node, dir, domain, more.str()));
   {
     // core.omp_wait_policy (default passive) is applied by re-executing: same pid, env set.
     std::ifstream env("/proc/" + std::to_string(node.pid()) + "/environ");
@@ -152,29 +196,11 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
       20s));
 
   // VLP-16-sized static room: 1.5 s of resting IMU for initialization, then 20 scans at 10 Hz.
-  ppf::dds::SyntheticLidar lidar;
-  lidar.rings = 16;
-  lidar.columns = 1024;
-  lidar.min_elevation_deg = -15;
-  lidar.max_elevation_deg = 15;
-  sensor_msgs::msg::PointCloud2 cloud = ppf::dds::MakeRoomScan(lidar, 0);
-  const int64_t t0 = 1700000000LL * 1000000000LL;
+  sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
   const int kScans = 20;
-  const auto wall0 = std::chrono::steady_clock::now();
-  int64_t imu_t = t0;
+  int64_t imu_t = 0;
   uint64_t seq = 0;
-  for (int s = 0; s <= kScans; ++s) {
-    const int64_t scan_end = t0 + 1500000000LL + s * 100000000LL;
-    while (imu_t <= scan_end) {
-      sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(imu_t, seq++);
-      ASSERT_TRUE(imu_w->write(&imu));
-      imu_t += 5000000;
-    }
-    std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(scan_end - t0));
-    if (s == 0) continue;
-    cloud.header().stamp(ppf::bridge::TimeFromNanoseconds(scan_end - 100000000LL));
-    ASSERT_TRUE(cloud_w->write(&cloud));
-  }
+  ASSERT_NO_FATAL_FAILURE(DriveStaticRoom(imu_w, cloud_w, cloud, kScans, &seq, &imu_t));
   // Malformed input: garbage, a truncated real payload, an unknown field datatype.
   ppf::dds::RawMessage bad;
   bad.payload = {0x00, 0x01, 0x00, 0x00, 0xff, 0xff, 0xff, 0x7f, 0x01};
@@ -195,11 +221,8 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   // After initialization every scan gives a pose; allow a slow machine 20 s to catch up.
   WaitUntil([&] { return odom.Count() >= static_cast<size_t>(kScans) - 2; }, 20s);
   std::this_thread::sleep_for(500ms);
-  node.Signal(SIGINT);
-  std::vector<std::string> seen;
-  ASSERT_TRUE(node.WaitForLine("PPF_NODE_SUMMARY", &line, 30s, &seen));
-  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 0));
-  std::printf("%s\n", line.c_str());
+  std::string line;
+  ASSERT_NO_FATAL_FAILURE(StopNode(node, &line));
 
   EXPECT_EQ(SummaryField(line, "scans_malformed"), 3.0);
   EXPECT_EQ(SummaryField(line, "imu_malformed"), 1.0);
@@ -256,18 +279,9 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
 // and the summary reports it.
 TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
   const int domain = ppf::test::TestDomainId(12);
-  const std::string dir = TempDir();
-  const std::string cfg = dir + "/node.yaml";
-  {
-    std::ofstream out(cfg);
-    out << "dds: {domain_id: " << domain << ", profiles_file: \"" << kProfiles
-        << "\", profile_name: " << kProfile << "}\n"
-        << "queues: {scan_capacity: 100}\n";
-  }
+  const std::string dir = TempDir("ppf_node_test");
   ChildProcess node;
-  ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", cfg}, {}, dir + "/node.log"));
-  std::string line;
-  ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
+  ASSERT_NO_FATAL_FAILURE(StartNode(node, dir, domain, "queues: {scan_capacity: 100}\n"));
   TestParticipant driver(domain, kProfiles, kProfile, "test_driver");
   ASSERT_TRUE(driver.ok()) << driver.error;
   WriterMatches cloud_m, imu_m;
@@ -284,31 +298,13 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
   ASSERT_TRUE(cloud_w && imu_w);
   ASSERT_TRUE(
       WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 && odom.matched > 0; }, 20s));
-  ppf::dds::SyntheticLidar lidar;
-  lidar.rings = 16;
-  lidar.columns = 1024;
-  lidar.min_elevation_deg = -15;
-  lidar.max_elevation_deg = 15;
-  sensor_msgs::msg::PointCloud2 cloud = ppf::dds::MakeRoomScan(lidar, 0);
-  const int64_t t0 = 1700000000LL * 1000000000LL;
+  sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
   const int kScans = 10;
   size_t first_pass = 0;
   uint64_t seq = 0;
   for (int pass = 0; pass < 2; ++pass) {  // the same 2.5 s of stamps twice
-    const auto wall0 = std::chrono::steady_clock::now();
-    int64_t imu_t = t0;
-    for (int s = 0; s <= kScans; ++s) {
-      const int64_t scan_end = t0 + 1500000000LL + s * 100000000LL;
-      while (imu_t <= scan_end) {
-        sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(imu_t, seq++);
-        ASSERT_TRUE(imu_w->write(&imu));
-        imu_t += 5000000;
-      }
-      std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(scan_end - t0));
-      if (s == 0) continue;
-      cloud.header().stamp(ppf::bridge::TimeFromNanoseconds(scan_end - 100000000LL));
-      ASSERT_TRUE(cloud_w->write(&cloud));
-    }
+    int64_t imu_t = 0;
+    ASSERT_NO_FATAL_FAILURE(DriveStaticRoom(imu_w, cloud_w, cloud, kScans, &seq, &imu_t));
     // No pause between the passes, as with `ros2 bag play --loop`: the new timeline's IMU burst
     // arrives while the old timeline's last scans are still queued.
   }
@@ -325,10 +321,8 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
     }
   }
   std::this_thread::sleep_for(300ms);
-  node.Signal(SIGINT);
-  ASSERT_TRUE(node.WaitForLine("PPF_NODE_SUMMARY", &line, 30s));
-  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 0));
-  std::printf("%s\n", line.c_str());
+  std::string line;
+  ASSERT_NO_FATAL_FAILURE(StopNode(node, &line));
   EXPECT_GE(first_pass, static_cast<size_t>(kScans) - 2);
   EXPECT_GE(odom.Count(), first_pass + kScans - 3) << "odometry did not resume after the jump";
   EXPECT_EQ(SummaryField(line, "time_jumps"), 2.0);  // once on /imu, once on /points
@@ -342,7 +336,7 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
 }
 
 TEST(NodeProcess, BadConfigFailsFastWithExitCode) {
-  const std::string dir = TempDir();
+  const std::string dir = TempDir("ppf_node_test");
   const std::string cfg = dir + "/bad.yaml";
   {
     std::ofstream out(cfg);

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "child_process.hpp"
+#include "dds_test_util.hpp"
 #include "ppf_bag/bag.hpp"
 #include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
@@ -21,9 +22,6 @@ using namespace std::chrono_literals;
 using ppf::test::ChildProcess;
 
 namespace {
-
-const char* kProfiles = PPF_DDS_CONFIG_DIR "/test_loopback.xml";
-const char* kProfile = "ppf_test_loopback";
 
 struct Stored {
   int64_t t;
@@ -100,8 +98,8 @@ std::string ReplayAndRecord(const std::string& bag, const std::string& out,
                             const std::vector<std::string>& replay_args, const std::string& storage,
                             int salt) {
   const std::string domain = std::to_string(ppf::test::TestDomainId(salt));
-  const std::vector<std::string> dds = {"--domain", domain,      "--profiles",
-                                        kProfiles,  "--profile", kProfile};
+  const std::vector<std::string> dds = {"--domain",           domain,      "--profiles",
+                                        ppf::test::kProfiles, "--profile", ppf::test::kProfile};
   std::vector<std::string> rec = {PPF_RECORD_EXE, "--out", out, "--storage", storage, "--topics"};
   rec.insert(rec.end(), topics.begin(), topics.end());
   rec.insert(rec.end(), dds.begin(), dds.end());
@@ -122,12 +120,6 @@ std::string ReplayAndRecord(const std::string& bag, const std::string& out,
   return out;
 }
 
-std::string TempDir() {
-  char tmpl[] = "/tmp/ppf_dds_replay_XXXXXX";
-  const char* d = mkdtemp(tmpl);
-  return d ? d : "/tmp";
-}
-
 void ExpectSamePayloads(const std::vector<Stored>& want, const std::vector<Stored>& got,
                         const std::string& topic) {
   ASSERT_EQ(got.size(), want.size()) << topic;
@@ -141,7 +133,7 @@ void ExpectSamePayloads(const std::vector<Stored>& want, const std::vector<Store
 class ReplayRecord : public ::testing::TestWithParam<ppf::bag::Storage> {};
 
 TEST_P(ReplayRecord, EveryPayloadComesBackByteForByteIncludingUnknownTypesAndRemaps) {
-  const std::string dir = TempDir();
+  const std::string dir = ppf::test::TempDir("ppf_dds_replay");
   const int64_t t0 = 1700000000LL * 1000000000LL;
   const Topics written = MakeBag(dir + "/in", GetParam(), t0);
   const bool mcap = GetParam() == ppf::bag::Storage::kMcap;
@@ -175,7 +167,7 @@ INSTANTIATE_TEST_SUITE_P(Storages, ReplayRecord,
                          });
 
 TEST(ReplayRecordOptions, TopicFilterStartAndRate) {
-  const std::string dir = TempDir();
+  const std::string dir = ppf::test::TempDir("ppf_dds_replay");
   const int64_t t0 = 1700000000LL * 1000000000LL;
   const Topics written = MakeBag(dir + "/in", ppf::bag::Storage::kMcap, t0);
   // Only /imu, from 0.3 s on, at 2x.
@@ -201,12 +193,12 @@ TEST(ReplayRecordOptions, TopicFilterStartAndRate) {
 // --loop plays the bag again until SIGINT; --types makes ppf_record subscribe before any writer
 // is discovered (reliable keep-all), with the given type.
 TEST(ReplayRecordOptions, LoopUntilInterruptedAndExplicitTypes) {
-  const std::string dir = TempDir();
+  const std::string dir = ppf::test::TempDir("ppf_dds_replay");
   const int64_t t0 = 1700000000LL * 1000000000LL;
   const Topics written = MakeBag(dir + "/in", ppf::bag::Storage::kSqlite3, t0);
   const std::string domain = std::to_string(ppf::test::TestDomainId(34));
-  const std::vector<std::string> dds = {"--domain", domain,      "--profiles",
-                                        kProfiles,  "--profile", kProfile};
+  const std::vector<std::string> dds = {"--domain",           domain,      "--profiles",
+                                        ppf::test::kProfiles, "--profile", ppf::test::kProfile};
   std::vector<std::string> rec = {PPF_RECORD_EXE,
                                   "--out",
                                   dir + "/out",

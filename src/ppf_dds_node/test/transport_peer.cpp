@@ -26,34 +26,59 @@ namespace fdds = eprosima::fastdds::dds;
 
 namespace {
 
+// The sequence numbers one stream delivered intact.
+struct Stream {
+  std::set<int> received;
+  int last = -1;
+};
+
 struct Tally {
   std::mutex mutex;
-  std::set<int> clouds, imus;
+  Stream clouds, imus;
   int corrupt = 0, duplicates = 0, out_of_order = 0;
-  int last_cloud = -1, last_imu = -1;
 };
 
-class CloudListener : public fdds::DataReaderListener {
+// What identifies a sample and its regenerated original, per message type.
+int SequenceNumber(const sensor_msgs::msg::PointCloud2& msg) { return msg.header().stamp().sec(); }
+int SequenceNumber(const sensor_msgs::msg::Imu& msg) {
+  return msg.header().stamp().sec() * 200 +
+         static_cast<int>(msg.header().stamp().nanosec() / 5000000u);
+}
+bool Intact(const sensor_msgs::msg::PointCloud2& msg, int seq) {
+  return seq >= 0 && seq < ppf::test::kTransportClouds && msg == ppf::test::MakeTransportCloud(seq);
+}
+bool Intact(const sensor_msgs::msg::Imu& msg, int seq) {
+  return seq >= 0 && seq < ppf::test::kTransportImus && msg == ppf::test::MakeTransportImu(seq);
+}
+// A corrupt cloud is logged with its size (truncated or garbled); corrupt IMU samples are only
+// counted.
+void ReportCorrupt(const sensor_msgs::msg::PointCloud2& msg, int seq) {
+  std::fprintf(stderr, "transport_peer: cloud seq %d corrupt (%zu bytes)\n", seq,
+               msg.data().size());
+}
+void ReportCorrupt(const sensor_msgs::msg::Imu&, int) {}
+
+// Checks every sample of one topic against its original and tallies it into `stream`.
+template <typename MsgT>
+class StreamListener : public fdds::DataReaderListener {
  public:
-  explicit CloudListener(Tally* t) : tally_(t) {}
+  StreamListener(Tally* t, Stream* s) : tally_(t), stream_(s) {}
   void on_data_available(fdds::DataReader* reader) override {
-    sensor_msgs::msg::PointCloud2 msg;
+    MsgT msg;
     fdds::SampleInfo info;
     while (reader->take_next_sample(&msg, &info) == ReturnCode_t::RETCODE_OK) {
       if (!info.valid_data) continue;
-      const int seq = msg.header().stamp().sec();
-      const bool intact = seq >= 0 && seq < ppf::test::kTransportClouds &&
-                          msg == ppf::test::MakeTransportCloud(seq);
+      const int seq = SequenceNumber(msg);
+      const bool intact = Intact(msg, seq);
       std::lock_guard<std::mutex> lock(tally_->mutex);
       if (!intact) {
         ++tally_->corrupt;
-        std::fprintf(stderr, "transport_peer: cloud seq %d corrupt (%zu bytes)\n", seq,
-                     msg.data().size());
+        ReportCorrupt(msg, seq);
         continue;
       }
-      if (!tally_->clouds.insert(seq).second) ++tally_->duplicates;
-      if (seq < tally_->last_cloud) ++tally_->out_of_order;
-      tally_->last_cloud = seq;
+      if (!stream_->received.insert(seq).second) ++tally_->duplicates;
+      if (seq < stream_->last) ++tally_->out_of_order;
+      stream_->last = seq;
     }
   }
   void on_subscription_matched(fdds::DataReader*,
@@ -64,38 +89,7 @@ class CloudListener : public fdds::DataReaderListener {
 
  private:
   Tally* tally_;
-};
-
-class ImuListener : public fdds::DataReaderListener {
- public:
-  explicit ImuListener(Tally* t) : tally_(t) {}
-  void on_data_available(fdds::DataReader* reader) override {
-    sensor_msgs::msg::Imu msg;
-    fdds::SampleInfo info;
-    while (reader->take_next_sample(&msg, &info) == ReturnCode_t::RETCODE_OK) {
-      if (!info.valid_data) continue;
-      const int seq = msg.header().stamp().sec() * 200 +
-                      static_cast<int>(msg.header().stamp().nanosec() / 5000000u);
-      const bool intact =
-          seq >= 0 && seq < ppf::test::kTransportImus && msg == ppf::test::MakeTransportImu(seq);
-      std::lock_guard<std::mutex> lock(tally_->mutex);
-      if (!intact) {
-        ++tally_->corrupt;
-        continue;
-      }
-      if (!tally_->imus.insert(seq).second) ++tally_->duplicates;
-      if (seq < tally_->last_imu) ++tally_->out_of_order;
-      tally_->last_imu = seq;
-    }
-  }
-  void on_subscription_matched(fdds::DataReader*,
-                               const fdds::SubscriptionMatchedStatus& s) override {
-    matched = s.current_count;
-  }
-  std::atomic<int> matched{0};
-
- private:
-  Tally* tally_;
+  Stream* stream_;
 };
 
 }  // namespace
@@ -138,8 +132,8 @@ int main(int argc, char** argv) {
   fdds::Topic* imu_topic = participant->create_topic("rt/ppf_test/imu", imu_type.get_type_name(),
                                                      fdds::TOPIC_QOS_DEFAULT);
   Tally tally;
-  CloudListener cloud_listener(&tally);
-  ImuListener imu_listener(&tally);
+  StreamListener<sensor_msgs::msg::PointCloud2> cloud_listener(&tally, &tally.clouds);
+  StreamListener<sensor_msgs::msg::Imu> imu_listener(&tally, &tally.imus);
   const fdds::DataReaderQos qos = ppf::dds::KeepAllReaderQos();
   sub->create_datareader(cloud_topic, qos, &cloud_listener);
   sub->create_datareader(imu_topic, qos, &imu_listener);
@@ -155,8 +149,8 @@ int main(int argc, char** argv) {
     }
     {
       std::lock_guard<std::mutex> lock(tally.mutex);
-      complete = static_cast<int>(tally.clouds.size()) == ppf::test::kTransportClouds &&
-                 static_cast<int>(tally.imus.size()) == ppf::test::kTransportImus;
+      complete = static_cast<int>(tally.clouds.received.size()) == ppf::test::kTransportClouds &&
+                 static_cast<int>(tally.imus.received.size()) == ppf::test::kTransportImus;
     }
     if (complete) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -164,8 +158,8 @@ int main(int argc, char** argv) {
   {
     std::lock_guard<std::mutex> lock(tally.mutex);
     std::printf("RESULT clouds=%zu imus=%zu corrupt=%d duplicates=%d out_of_order=%d complete=%d\n",
-                tally.clouds.size(), tally.imus.size(), tally.corrupt, tally.duplicates,
-                tally.out_of_order, complete ? 1 : 0);
+                tally.clouds.received.size(), tally.imus.received.size(), tally.corrupt,
+                tally.duplicates, tally.out_of_order, complete ? 1 : 0);
     std::fflush(stdout);
   }
   participant->delete_contained_entities();

@@ -2,8 +2,6 @@
 // Each topic's type comes from discovery (the first writer seen), or from --types / the node's
 // known topics when given; the reader's reliability follows the discovered writer's so both
 // reliable and best-effort publishers are recorded. Payloads are stored exactly as received.
-#include <signal.h>
-
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -31,11 +29,9 @@
 namespace fdds = eprosima::fastdds::dds;
 using ppf::dds::Level;
 using ppf::dds::Log;
+using ppf::dds::StopRequested;
 
 namespace {
-
-std::atomic<bool> g_stop{false};
-void OnSignal(int) { g_stop = true; }
 
 void Usage() {
   std::fprintf(stderr,
@@ -284,8 +280,7 @@ int main(int argc, char** argv) {
     return 1;
   }
 
-  signal(SIGINT, OnSignal);
-  signal(SIGTERM, OnSignal);
+  ppf::dds::StopOnSignals();
 
   Recorder recorder(writer.get(), topics, types);
   ppf::dds::ParticipantOptions popt{dds.domain_id, dds.profiles_file, dds.profile_name,
@@ -318,7 +313,7 @@ int main(int argc, char** argv) {
   std::fflush(stdout);
 
   const auto t0 = std::chrono::steady_clock::now();
-  while (!g_stop) {
+  while (!StopRequested()) {
     if (duration_s > 0 &&
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() >=
             duration_s) {

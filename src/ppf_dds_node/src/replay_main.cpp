@@ -1,8 +1,6 @@
 // ppf_replay: publishes a rosbag2 bag (sqlite3 or MCAP) on DDS with its recorded timing, like
 // `ros2 bag play`. Payloads go out byte for byte as stored (raw topic type with the ROS DDS type
 // name), so any message type replays without being decoded.
-#include <signal.h>
-
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -28,11 +26,9 @@
 namespace fdds = eprosima::fastdds::dds;
 using ppf::dds::Level;
 using ppf::dds::Log;
+using ppf::dds::StopRequested;
 
 namespace {
-
-std::atomic<bool> g_stop{false};
-void OnSignal(int) { g_stop = true; }
 
 void Usage() {
   std::fprintf(
@@ -170,15 +166,14 @@ int main(int argc, char** argv) {
                           " [" + dds_type + "], " + std::to_string(t.message_count) + " messages");
   }
 
-  signal(SIGINT, OnSignal);
-  signal(SIGTERM, OnSignal);
+  ppf::dds::StopOnSignals();
 
   if (wait_matched_s > 0.0) {
     const auto deadline = std::chrono::steady_clock::now() +
                           std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                               std::chrono::duration<double>(wait_matched_s));
     bool all = false;
-    while (!g_stop && !all && std::chrono::steady_clock::now() < deadline) {
+    while (!StopRequested() && !all && std::chrono::steady_clock::now() < deadline) {
       all = true;
       for (auto& [name, out] : outs) all = all && out.matches->matched > 0;
       if (!all) std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -198,12 +193,12 @@ int main(int argc, char** argv) {
   int loops = 0;
   bool failed = false;
   ppf::dds::RawMessage raw;
-  while (!g_stop) {
+  while (!StopRequested()) {
     const auto wall0 = std::chrono::steady_clock::now();
     int64_t bag0 = -1;
     ppf::bag::Message msg;
     try {
-      while (!g_stop && reader->Next(msg)) {
+      while (!StopRequested() && reader->Next(msg)) {
         auto it = outs.find(msg.topic);
         if (it == outs.end()) continue;
         if (bag0 < 0) bag0 = msg.timestamp_ns;
@@ -225,7 +220,7 @@ int main(int argc, char** argv) {
       break;
     }
     ++loops;
-    if (!loop || g_stop) break;
+    if (!loop || StopRequested()) break;
     reader->Seek(start_ns);  // rewinds; stamps loop back in time, the node must cope
   }
   // Reliable readers: let them fetch the tail before the writers disappear. Best-effort readers

@@ -1,6 +1,9 @@
 // Small command-line helpers shared by ppf_replay, ppf_record and the benchmark.
 #pragma once
 
+#include <signal.h>
+
+#include <atomic>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -36,5 +39,17 @@ inline std::vector<std::string> TakeList(int argc, char** argv, int* i) {
   while (*i + 1 < argc && std::string(argv[*i + 1]).rfind("--", 0) != 0) out.push_back(argv[++*i]);
   return out;
 }
+
+namespace detail {
+inline std::atomic<bool> stop_requested{false};
+}  // namespace detail
+
+// After StopOnSignals(), SIGINT and SIGTERM only set a flag (StopRequested()) that the tool's
+// loops poll, so it can wind down (acknowledgements, bag close, counts) instead of dying mid-way.
+inline void StopOnSignals() {
+  signal(SIGINT, [](int) { detail::stop_requested = true; });
+  signal(SIGTERM, [](int) { detail::stop_requested = true; });
+}
+inline bool StopRequested() { return detail::stop_requested; }
 
 }  // namespace ppf::dds

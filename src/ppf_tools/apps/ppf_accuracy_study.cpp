@@ -57,22 +57,22 @@ int main(int argc, char** argv) {
   opts.sequences = kDefaultSequences;
   opts.config_dir = PPF_DEFAULT_CONFIG_DIR;
   std::string modes_arg = "knn", save_dir;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    std::string error;
-    const int used = ppf::tools::ParseStudyOption(argc, argv, &i, &opts, &error);
-    if (used < 0) Fail(error);
-    if (used > 0) continue;
-    if (a == "-h" || a == "--help") {
-      std::cout << Usage();
-      return 0;
-    } else if ((a == "--modes" || a == "--save") && i + 1 < argc) {
-      (a == "--modes" ? modes_arg : save_dir) = argv[++i];
-    } else if (a == "--modes" || a == "--save") {
-      Fail("missing value after " + a);
-    } else {
-      Fail("unknown argument '" + a + "' (see --help)");
+  const auto own = [&](int n, char** args, int* i, std::string* error) {
+    const std::string a = args[*i];
+    if (a != "--modes" && a != "--save") return 0;
+    if (*i + 1 >= n) {
+      *error = "missing value after " + a;
+      return -1;
     }
+    (a == "--modes" ? modes_arg : save_dir) = args[++*i];
+    return 1;
+  };
+  bool help = false;
+  std::string error;
+  if (!ppf::tools::ParseStudyCommandLine(argc, argv, &opts, &help, &error, own)) Fail(error);
+  if (help) {
+    std::cout << Usage();
+    return 0;
   }
   std::vector<ppf::Mode> modes;
   {
@@ -89,7 +89,6 @@ int main(int argc, char** argv) {
     if (modes.empty()) Fail("--modes: no mode given");
   }
   std::vector<ppf::tools::SequenceSpec> sequences;
-  std::string error;
   if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
   const double duration = opts.EffectiveDuration();
   if (!save_dir.empty()) std::filesystem::create_directories(save_dir);

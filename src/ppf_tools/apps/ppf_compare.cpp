@@ -36,26 +36,20 @@ int main(int argc, char** argv) {
   ppf::tools::StudyOptions opts;
   opts.sequences = kDefaultSequences;
   opts.config_dir = PPF_DEFAULT_CONFIG_DIR;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    std::string error;
-    const int used = ppf::tools::ParseStudyOption(argc, argv, &i, &opts, &error);
-    if (used < 0) Fail(error);
-    if (used > 0) continue;
-    if (a == "-h" || a == "--help") {
-      std::cout << "usage: ppf_compare [options]\n\n"
-                   "Runs --mode knn and --mode ppf on the same simulated sequences (generated with\n"
-                   "ppf_sim on first use) and prints one table: stage timings, scans per second,\n"
-                   "local map size, APE/RPE.\n\n"
-                << ppf::tools::StudyOptionsHelp(kDefaultSequences)
-                << "  -h, --help            this text\n";
-      return 0;
-    }
-    Fail("unknown argument '" + a + "' (see --help)");
+  bool help = false;
+  std::string error;
+  if (!ppf::tools::ParseStudyCommandLine(argc, argv, &opts, &help, &error)) Fail(error);
+  if (help) {
+    std::cout << "usage: ppf_compare [options]\n\n"
+                 "Runs --mode knn and --mode ppf on the same simulated sequences (generated with\n"
+                 "ppf_sim on first use) and prints one table: stage timings, scans per second,\n"
+                 "local map size, APE/RPE.\n\n"
+              << ppf::tools::StudyOptionsHelp(kDefaultSequences)
+              << "  -h, --help            this text\n";
+    return 0;
   }
   const double duration = opts.EffectiveDuration();
   std::vector<ppf::tools::SequenceSpec> sequences;
-  std::string error;
   if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
 
   struct Row {

@@ -107,6 +107,26 @@ int ParseStudyOption(int argc, char** argv, int* i, StudyOptions* opts, std::str
   return 1;
 }
 
+bool ParseStudyCommandLine(int argc, char** argv, StudyOptions* opts, bool* help,
+                           std::string* error, const OptionParser& own) {
+  *help = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    int used = ParseStudyOption(argc, argv, &i, opts, error);
+    if (used == 0 && (a == "-h" || a == "--help")) {
+      *help = true;
+      return true;
+    }
+    if (used == 0 && own) used = own(argc, argv, &i, error);
+    if (used < 0) return false;
+    if (used == 0) {
+      *error = "unknown argument '" + a + "' (see --help)";
+      return false;
+    }
+  }
+  return true;
+}
+
 std::string StudyOptionsHelp(const std::string& default_sequences) {
   return "  --short               CI form: shorter sequences (default durations 60 s -> 10 s)\n"
          "  --sequences LIST      comma-separated scene:lidar pairs\n"

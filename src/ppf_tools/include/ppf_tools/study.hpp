@@ -3,6 +3,7 @@
 // the core per mode scored against ground truth, and the accuracy bounds.
 #pragma once
 
+#include <functional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -36,6 +37,13 @@ struct StudyOptions {
   double EffectiveDuration() const { return duration > 0 ? duration : (short_form ? 10.0 : 60.0); }
 };
 int ParseStudyOption(int argc, char** argv, int* i, StudyOptions* opts, std::string* error);
+// A command's own options, with ParseStudyOption's contract.
+using OptionParser = std::function<int(int argc, char** argv, int* i, std::string* error)>;
+// The whole command line of a study command, in order: the study options, -h/--help (sets *help
+// and stops there), the command's own options (`own`, may be empty). False on the first argument
+// that is wrong or that nobody takes (*error says why).
+bool ParseStudyCommandLine(int argc, char** argv, StudyOptions* opts, bool* help,
+                           std::string* error, const OptionParser& own = nullptr);
 // Help text lines for the options above (with the command's default sequence list).
 std::string StudyOptionsHelp(const std::string& default_sequences);
 

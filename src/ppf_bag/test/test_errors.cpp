@@ -90,6 +90,26 @@ void ZeroDataEndCrc(std::vector<uint8_t>& b) {
   std::memset(&b[s - 4], 0, 4);
 }
 
+// Applies `corrupt` to the bytes of a fresh WriteMcap(tmp, compression) file and expects reading
+// the result to fail with a BagError containing `needle`; a fatal failure in `corrupt` ends it.
+template <typename Fn>
+void ExpectCorruptMcapRejected(const std::string& compression, Fn&& corrupt,
+                               const std::string& needle) {
+  TempDir tmp;
+  const std::string file = WriteMcap(tmp, compression);
+  auto b = ReadFileBytes(file);
+  corrupt(b);
+  if (::testing::Test::HasFatalFailure()) return;
+  WriteFileBytes(file, b);
+  ExpectBagError([&] { OpenAndReadAll(file); }, needle);
+}
+
+void FlipMarkedPayloadByte(std::vector<uint8_t>& b) {
+  const size_t at = Find(b, kMarker);
+  ASSERT_NE(at, std::string::npos);
+  b[at + 5] ^= 0x40;
+}
+
 // ---- paths and metadata ----------------------------------------------------------------------
 
 TEST(Errors, MissingPath) {
@@ -145,26 +165,18 @@ TEST(Errors, GarbageFiles) {
 // ---- MCAP corruption -------------------------------------------------------------------------
 
 TEST(McapErrors, PayloadByteFlipFailsDataSectionCrc) {
-  TempDir tmp;
-  const std::string file = WriteMcap(tmp, "none");
-  auto b = ReadFileBytes(file);
-  const size_t at = Find(b, kMarker);
-  ASSERT_NE(at, std::string::npos);
-  b[at + 5] ^= 0x40;
-  WriteFileBytes(file, b);
-  ExpectBagError([&] { OpenAndReadAll(file); }, "data section CRC mismatch");
+  ExpectCorruptMcapRejected("none", FlipMarkedPayloadByte, "data section CRC mismatch");
 }
 
 TEST(McapErrors, PayloadByteFlipFailsChunkCrc) {
-  TempDir tmp;
-  const std::string file = WriteMcap(tmp, "none");
-  auto b = ReadFileBytes(file);
-  const size_t at = Find(b, kMarker);
-  ASSERT_NE(at, std::string::npos);
-  b[at + 5] ^= 0x40;
-  ZeroDataEndCrc(b);  // only the chunk CRC is left to catch it
-  WriteFileBytes(file, b);
-  ExpectBagError([&] { OpenAndReadAll(file); }, "CRC mismatch");
+  ExpectCorruptMcapRejected(
+      "none",
+      [](std::vector<uint8_t>& b) {
+        FlipMarkedPayloadByte(b);
+        if (::testing::Test::HasFatalFailure()) return;
+        ZeroDataEndCrc(b);  // only the chunk CRC is left to catch it
+      },
+      "CRC mismatch");
 }
 
 TEST(McapErrors, CorruptCompressedChunk) {
@@ -185,14 +197,14 @@ TEST(McapErrors, CorruptCompressedChunk) {
 }
 
 TEST(McapErrors, SummaryCrcMismatch) {
-  TempDir tmp;
-  const std::string file = WriteMcap(tmp, "none");
-  auto b = ReadFileBytes(file);
-  const uint64_t s = SummaryStart(b);
-  ASSERT_EQ(b[s], 0x03) << "summary starts with the Schema group";
-  b[s + 20] ^= 0x01;
-  WriteFileBytes(file, b);
-  ExpectBagError([&] { OpenAndReadAll(file); }, "summary CRC mismatch");
+  ExpectCorruptMcapRejected(
+      "none",
+      [](std::vector<uint8_t>& b) {
+        const uint64_t s = SummaryStart(b);
+        ASSERT_EQ(b[s], 0x03) << "summary starts with the Schema group";
+        b[s + 20] ^= 0x01;
+      },
+      "summary CRC mismatch");
 }
 
 TEST(McapErrors, Truncated) {
@@ -206,13 +218,13 @@ TEST(McapErrors, Truncated) {
 }
 
 TEST(McapErrors, RecordLengthBeyondFile) {
-  TempDir tmp;
-  const std::string file = WriteMcap(tmp, "none");
-  auto b = ReadFileBytes(file);
-  // The Header record's length field (bytes 9..16) made huge.
-  b[9 + 6] = 0x7F;
-  WriteFileBytes(file, b);
-  ExpectBagError([&] { OpenAndReadAll(file); }, "beyond the data section");
+  ExpectCorruptMcapRejected(
+      "none",
+      [](std::vector<uint8_t>& b) {
+        // The Header record's length field (bytes 9..16) made huge.
+        b[9 + 6] = 0x7F;
+      },
+      "beyond the data section");
 }
 
 TEST(Mcap, MissingSummaryIsScanned) {
@@ -296,6 +308,13 @@ struct Mini {
   }
 };
 
+// Expects reading the hand-built MCAP `bytes` to fail with a BagError containing `needle`.
+void ExpectMcapBytesRejected(const std::vector<uint8_t>& bytes, const std::string& needle) {
+  TempDir tmp;
+  WriteFileBytes(tmp / "u.mcap", bytes);
+  ExpectBagError([&] { OpenAndReadAll(tmp / "u.mcap"); }, needle);
+}
+
 TEST(Mcap, UnchunkedOutOfOrderMessagesComeOutSorted) {
   Mini m;
   m.Header();
@@ -325,10 +344,7 @@ TEST(Mcap, UnchunkedOutOfOrderMessagesComeOutSorted) {
     EXPECT_EQ(got[i].data[4], order[i]) << i;
   }
   r.SetTopicFilter({"/y"});
-  const auto y = ReadAll(r);
-  ASSERT_EQ(y.size(), 2u);
-  EXPECT_EQ(y[0].timestamp_ns, 100);
-  EXPECT_EQ(y[1].timestamp_ns, 300);
+  EXPECT_EQ(ppf::bag::test::Stamps(ReadAll(r)), (std::vector<int64_t>{100, 300}));
 }
 
 TEST(McapErrors, MessageOnUnknownChannel) {
@@ -338,9 +354,7 @@ TEST(McapErrors, MessageOnUnknownChannel) {
   m.Channel(3, 1, "/x");
   m.Msg(7, 100, 1);
   m.EndNoSummary();
-  TempDir tmp;
-  WriteFileBytes(tmp / "u.mcap", m.b);
-  ExpectBagError([&] { OpenAndReadAll(tmp / "u.mcap"); }, "unknown channel 7");
+  ExpectMcapBytesRejected(m.b, "unknown channel 7");
 }
 
 TEST(McapErrors, ChannelWithUnknownSchema) {
@@ -349,18 +363,14 @@ TEST(McapErrors, ChannelWithUnknownSchema) {
   m.Schema(1, "std_msgs/msg/Int32");
   m.Channel(3, 9, "/x");
   m.EndNoSummary();
-  TempDir tmp;
-  WriteFileBytes(tmp / "u.mcap", m.b);
-  ExpectBagError([&] { OpenAndReadAll(tmp / "u.mcap"); }, "unknown schema 9");
+  ExpectMcapBytesRejected(m.b, "unknown schema 9");
 }
 
 TEST(McapErrors, NoHeaderRecord) {
   Mini m;
   m.Schema(1, "std_msgs/msg/Int32");
   m.EndNoSummary();
-  TempDir tmp;
-  WriteFileBytes(tmp / "u.mcap", m.b);
-  ExpectBagError([&] { OpenAndReadAll(tmp / "u.mcap"); }, "Header");
+  ExpectMcapBytesRejected(m.b, "Header");
 }
 
 // ---- sqlite3 layouts and corruption ----------------------------------------------------------

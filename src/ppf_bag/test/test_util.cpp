@@ -61,6 +61,12 @@ std::vector<Message> ReadAll(Reader& reader) {
   return out;
 }
 
+std::vector<int64_t> Stamps(const std::vector<Message>& messages) {
+  std::vector<int64_t> out;
+  for (const Message& m : messages) out.push_back(m.timestamp_ns);
+  return out;
+}
+
 template <typename T>
 T CdrReader::Get() {
   while ((pos_ - 4) % sizeof(T)) ++pos_;

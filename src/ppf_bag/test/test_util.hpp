@@ -31,6 +31,8 @@ std::string ShellQuote(const std::string& s);
 std::vector<uint8_t> ReadFileBytes(const std::string& path);
 void WriteFileBytes(const std::string& path, const std::vector<uint8_t>& bytes);
 std::vector<Message> ReadAll(Reader& reader);
+// The messages' timestamp_ns, in order.
+std::vector<int64_t> Stamps(const std::vector<Message>& messages);
 
 // Little-endian XCDR1 writer with ROS 2 encapsulation header 00 01 00 00; alignment is relative
 // to the end of the header, as in rosidl/Fast CDR.

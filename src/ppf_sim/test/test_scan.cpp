@@ -29,6 +29,16 @@ Eigen::Isometry3d TestExtrinsic() {
   return T;
 }
 
+// No range noise, no dropout, the test extrinsic: every point lies exactly where the pose at its
+// firing time and T_imu_lidar put it.
+ScanOptions ExactScanOptions() {
+  ScanOptions so;
+  so.range_noise = 0.0;
+  so.dropout = 0.0;
+  so.T_imu_lidar = TestExtrinsic();
+  return so;
+}
+
 Eigen::Vector3f Xyz(const CloudBuffer& c, size_t i) {
   return {c.Get<float>(i, *c.Field("x")), c.Get<float>(i, *c.Field("y")),
           c.Get<float>(i, *c.Field("z"))};
@@ -180,10 +190,7 @@ TEST(Extrinsic, StaticScanOfKnownPlanesAppearsWhereTheExtrinsicSays) {
   scene.Add(MakeQuad({0, 0, 0}, Eigen::Vector3d::UnitX(), 7.9, Eigen::Vector3d::UnitY(), 50, 0.6f));
   scene.Build();
   const Trajectory traj = Straight(0.0, 1.2);
-  ScanOptions so;
-  so.range_noise = 0.0;
-  so.dropout = 0.0;
-  so.T_imu_lidar = TestExtrinsic();
+  const ScanOptions so = ExactScanOptions();
   ScanGenerator gen(scene, traj, GetLidarModel("vlp16"), so);
   const CloudBuffer c = gen.Generate(0);
   const Eigen::Isometry3d T_world_lidar = traj.Pose(0.0) * so.T_imu_lidar;
@@ -211,10 +218,7 @@ TEST(MotionDistortion, PointsFollowThePoseAtTheirOwnTime) {
   scene.Add(MakeQuad({30, 0, 0}, Eigen::Vector3d::UnitY(), 100, Eigen::Vector3d::UnitZ(), 50, 0.6f));
   scene.Build();
   const Trajectory traj = Straight(10.0, 0.0);
-  ScanOptions so;
-  so.range_noise = 0.0;
-  so.dropout = 0.0;
-  so.T_imu_lidar = TestExtrinsic();
+  const ScanOptions so = ExactScanOptions();
   ScanGenerator gen(scene, traj, GetLidarModel("vlp16"), so);
   const CloudBuffer c = gen.Generate(5);
   const PointFieldDesc* time = c.Field("time");

@@ -11,6 +11,7 @@ PlanePatchMap::PlanePatchMap(const PlanePatchMapOptions& options) : options_(opt
   if (!(options_.cell_size > 0.05)) options_.cell_size = 0.05;
   options_.max_patches_per_cell = std::max(1, options_.max_patches_per_cell);
   options_.min_points = std::max(3, options_.min_points);
+  if (!(options_.min_spread_ratio >= 0.0)) options_.min_spread_ratio = 0.0;
   options_.max_points = std::max(options_.min_points, options_.max_points);
   options_.max_cells = std::max<size_t>(1, options_.max_cells);
   inv_cell_ = 1.0 / options_.cell_size;
@@ -62,21 +63,17 @@ void PlanePatchMap::Insert(const Eigen::Vector3d& p_world, const Eigen::Vector3d
 
 void PlanePatchMap::Refit(Patch* patch) const {
   const PlaneMoments& m = patch->moments;
+  patch->usable = false;
   if (m.count < options_.min_points) return;
-  Eigen::Vector3d n = patch->normal_sum.normalized();
-  // The patch's own PCA normal once its points span the cell in two directions; before that (a
-  // single scan line, few points) the normal of the large plane the points were fitted to.
-  if (m.count >= 10.0) {
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(m.scatter);
-    const Eigen::Vector3d ev = es.eigenvalues();
-    if (ev(1) / m.count >= 0.05 && ev(0) < 0.1 * ev(1)) {
-      const Eigen::Vector3d pca = es.eigenvectors().col(0);
-      if (std::abs(pca.dot(n)) > std::cos(options_.same_surface_deg * M_PI / 180.0)) {
-        n = pca.dot(n) < 0.0 ? -pca : pca;
-      }
-    }
-  }
-  patch->plane = Plane{n, -n.dot(m.centroid)};
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(m.scatter);
+  const Eigen::Vector3d ev = es.eigenvalues();
+  const double min_spread = options_.min_spread_ratio * options_.cell_size;
+  if (ev(1) / m.count < min_spread * min_spread || !(ev(0) < 0.1 * ev(1))) return;
+  const Eigen::Vector3d n = patch->normal_sum.normalized();
+  const Eigen::Vector3d pca = es.eigenvectors().col(0);
+  if (std::abs(pca.dot(n)) < std::cos(options_.same_surface_deg * M_PI / 180.0)) return;
+  patch->plane = Plane{pca, -pca.dot(m.centroid)};
+  patch->usable = true;
 }
 
 void PlanePatchMap::FinishInsert() {
@@ -111,7 +108,7 @@ const PlanePatchMap::Patch* PlanePatchMap::Find(const Eigen::Vector3d& p_world,
   const Patch* best = nullptr;
   double best_distance = 0.0;
   for (const Patch& patch : it->second.patches) {
-    if (patch.moments.count < options_.min_points) continue;
+    if (!patch.usable) continue;
     if (std::abs(patch.plane.n.dot(n_world)) < min_cos) continue;
     const double distance = patch.plane.Distance(p_world);
     if (best == nullptr || distance < best_distance) {

@@ -66,6 +66,27 @@ TEST(PlanePatchMap, FirstObservationsAnchorThePatch) {
   EXPECT_NEAR(std::abs(patch->plane.n.z()), 1.0, 1e-6);
 }
 
+TEST(PlanePatchMap, ANormalComesFromThePatchsOwnPointsNeverFromTheInsertingPlane) {
+  // Ground rising 3 % along x, seen first as one scan line across the cell (far away), by a scan
+  // whose large ground plane is level: that plane's normal is the scan-wide tangent, 1.7 degrees
+  // off here, and a patch carrying it would pass the error on to every later scan.
+  const double slope = 0.03;
+  const Eigen::Vector3d true_normal = Eigen::Vector3d(-slope, 0.0, 1.0).normalized();
+  const auto ground = [&](double x, double y) { return Eigen::Vector3d(x, y, slope * x); };
+  PlanePatchMap map;
+  const double min_cos = std::cos(10.0 * M_PI / 180.0);
+  for (int i = 0; i < 30; ++i) map.Insert(ground(1.0, 0.05 + 0.063 * i), kUp);  // one ring
+  map.FinishInsert();
+  EXPECT_EQ(map.num_patches(), 1u);
+  EXPECT_EQ(map.Find(ground(1.0, 1.0), kUp, min_cos), nullptr) << "a line fixes no normal";
+  for (int i = 0; i < 15; ++i) map.Insert(ground(0.3, 0.1 + 0.12 * i), kUp);  // a second ring
+  map.FinishInsert();
+  const auto* patch = map.Find(ground(1.0, 1.0), kUp, min_cos);
+  ASSERT_NE(patch, nullptr);
+  EXPECT_GT(std::abs(patch->plane.n.dot(true_normal)), std::cos(0.01 * M_PI / 180.0));
+  EXPECT_NEAR(patch->plane.Distance(ground(1.9, 0.2)), 0.0, 1e-9);
+}
+
 TEST(PlanePatchMap, BoundedAroundTheSensorAndInCells) {
   PlanePatchMapOptions options;
   options.max_cells = 100;

@@ -1,5 +1,7 @@
 #include "ppf_tools/study.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -140,29 +142,60 @@ std::string StudyOptionsHelp(const std::string& default_sequences) {
          "  --threads N           OpenMP threads for the core (default: the preset's)\n";
 }
 
+namespace {
+bool CompleteSequence(const fs::path& dir) {
+  // groundtruth.tum is written after the bag is closed: its presence means a complete sequence.
+  return fs::exists(dir / "metadata.yaml") && fs::exists(dir / "groundtruth.tum");
+}
+}  // namespace
+
+bool GenerateSequenceOnce(const std::string& dir_name,
+                          const std::function<bool(const std::string& out)>& generate) {
+  const fs::path dir(dir_name);
+  if (CompleteSequence(dir)) return true;
+  // Same base name inside a private parent: ppf_sim names the bag files after the directory.
+  const fs::path staging = dir.parent_path() / (".staging_" + dir.filename().string() + "_" +
+                                                std::to_string(::getpid()));
+  fs::remove_all(staging);
+  fs::create_directories(staging);
+  const fs::path out = staging / dir.filename();
+  const bool ok = generate(out.string()) && CompleteSequence(out);
+  std::error_code ec;
+  if (ok) {
+    if (!CompleteSequence(dir)) {
+      fs::remove_all(dir, ec);  // an incomplete leftover of an interrupted run
+      fs::rename(out, dir, ec);
+    }
+    // ec set: another process put its complete copy there first, which is as good.
+  }
+  fs::remove_all(staging, ec);
+  return ok && CompleteSequence(dir);
+}
+
 std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::string& workdir,
                            std::ostream& log, const std::string& log_prefix) {
   std::ostringstream name;
   name << seq.scene << "_" << seq.lidar << "_" << static_cast<int>(duration) << "s";
   const fs::path dir = fs::path(workdir) / name.str();
-  // groundtruth.tum is written after the bag is closed: its presence means a complete sequence.
-  if (fs::exists(dir / "metadata.yaml") && fs::exists(dir / "groundtruth.tum")) return dir.string();
-  fs::remove_all(dir);
+  if (CompleteSequence(dir)) return dir.string();
   fs::create_directories(dir.parent_path());
-  std::ostringstream cmd;
-  cmd << "ppf_sim --scene " << seq.scene << " --lidar " << seq.lidar << " --duration " << duration
-      << " --seed 1 --storage mcap --out '" << dir.string() << "' > '" << dir.string()
-      << ".sim.log' 2>&1";
+  const std::string sim_log = dir.string() + ".sim.log";
   log << log_prefix << "generating " << name.str() << " with ppf_sim...\n" << std::flush;
-  if (std::system(cmd.str().c_str()) != 0) {
+  const bool ok = GenerateSequenceOnce(dir.string(), [&](const std::string& out) {
+    std::ostringstream cmd;
+    cmd << "ppf_sim --scene " << seq.scene << " --lidar " << seq.lidar << " --duration " << duration
+        << " --seed 1 --storage mcap --out '" << out << "' > '" << sim_log << "' 2>&1";
+    return std::system(cmd.str().c_str()) == 0;
+  });
+  if (!ok) {
     // The log's last line usually says why ("ppf_sim: not found" when it is not on PATH).
-    std::ifstream sim_log(dir.string() + ".sim.log");
+    std::ifstream sim_log_file(sim_log);
     std::string line, last;
-    while (std::getline(sim_log, line)) {
+    while (std::getline(sim_log_file, line)) {
       if (!line.empty()) last = line;
     }
-    throw std::runtime_error("ppf_sim failed for " + name.str() + ": " + last + " (see " +
-                             dir.string() + ".sim.log)");
+    throw std::runtime_error("ppf_sim failed for " + name.str() + ": " + last + " (see " + sim_log +
+                             ")");
   }
   return dir.string();
 }

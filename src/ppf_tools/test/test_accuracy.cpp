@@ -3,6 +3,7 @@
 // issue's bounds. CI runs shorter sequences than the 60 s figures recorded in the issue notes;
 // the bounds are the same kind (relative to path length, or absolute for hand-held).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include "ppf_core/evaluation.hpp"
 #include "ppf_tools/offline_runner.hpp"
 #include "ppf_tools/scan_stats.hpp"
+#include "ppf_tools/study.hpp"
 
 #ifndef PPF_SIM_EXE
 #define PPF_SIM_EXE "ppf_sim"
@@ -50,14 +52,16 @@ fs::path SequenceDir(const Case& c) {
 
 std::string Generate(const Case& c) {
   const fs::path dir = SequenceDir(c);
-  if (fs::exists(dir / "groundtruth.tum") && fs::exists(dir / "metadata.yaml")) return dir.string();
-  fs::remove_all(dir);
   fs::create_directories(dir.parent_path());
-  std::ostringstream cmd;
-  cmd << PPF_SIM_EXE << " " << c.sim_args << " --duration " << c.duration
-      << " --seed 1 --storage mcap --out '" << dir.string() << "' > '" << dir.string()
-      << ".log' 2>&1";
-  EXPECT_EQ(std::system(cmd.str().c_str()), 0) << cmd.str();
+  // The knn and ppf cases of a sequence may run at once (ctest -j): generated once, atomically.
+  const bool ok = ppf::tools::GenerateSequenceOnce(dir.string(), [&](const std::string& out) {
+    std::ostringstream cmd;
+    cmd << PPF_SIM_EXE << " " << c.sim_args << " --duration " << c.duration
+        << " --seed 1 --storage mcap --out '" << out << "' > '" << dir.string() << "." << ::getpid()
+        << ".log' 2>&1";
+    return std::system(cmd.str().c_str()) == 0;
+  });
+  EXPECT_TRUE(ok) << "ppf_sim failed, see " << dir.string() << ".<pid>.log";
   return dir.string();
 }
 
@@ -69,7 +73,8 @@ TEST_P(Accuracy, ApeWithinBound) {
   ASSERT_TRUE(fs::exists(fs::path(bag) / "groundtruth.tum"));
 
   ppf::Config config;
-  const auto report = ppf::LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/" + c.lidar + ".yaml", &config);
+  const auto report =
+      ppf::LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/" + c.lidar + ".yaml", &config);
   ASSERT_TRUE(report.ok) << report.error;
   // The simulated robot's own calibration (a non-identity T_imu_lidar), as a user would layer
   // their robot's calibration over a LiDAR preset.
@@ -105,10 +110,11 @@ TEST_P(Accuracy, ApeWithinBound) {
   const double path = ppf::PathLength(gt);
   const double percent = 100.0 * ape.stats.rmse / std::max(path, 1e-9);
   std::cout << "[ APE ] " << c.name << ": rmse " << ape.stats.rmse << " m over " << path
-            << " m path (" << percent << " %), max " << ape.stats.max << " m, " << run.results.size()
-            << " scans\n";
+            << " m path (" << percent << " %), max " << ape.stats.max << " m, "
+            << run.results.size() << " scans\n";
   if (c.max_ape_percent > 0) {
-    EXPECT_LE(percent, c.max_ape_percent) << "APE rmse " << ape.stats.rmse << " m on a " << path << " m path";
+    EXPECT_LE(percent, c.max_ape_percent)
+        << "APE rmse " << ape.stats.rmse << " m on a " << path << " m path";
   } else {
     EXPECT_LE(ape.stats.rmse, c.max_ape_m);
   }
@@ -126,14 +132,19 @@ INSTANTIATE_TEST_SUITE_P(
         Case{"urban_hdl64_ppf", "--scene urban --lidar hdl64", "hdl64", 8, kPpf, 0.5, 0},
         Case{"urban_vlp16_knn", "--scene urban --lidar vlp16", "vlp16", 12, kKnn, 0.5, 0},
         Case{"urban_os1_64_ppf", "--scene urban --lidar os1_64", "os1_64", 8, kPpf, 0.5, 0},
-        Case{"indoor_vlp16_knn", "--scene indoor --lidar vlp16 --motion car --speed 1.5", "vlp16", 12, kKnn, 0.5, 0},
-        Case{"indoor_vlp16_ppf", "--scene indoor --lidar vlp16 --motion car --speed 1.5", "vlp16", 12, kPpf, 0.5, 0},
-        Case{"indoor_os1_128_knn", "--scene indoor --lidar os1_128 --motion car --speed 1.5", "os1_128", 8, kKnn, 0.5, 0},
+        Case{"indoor_vlp16_knn", "--scene indoor --lidar vlp16 --motion car --speed 1.5", "vlp16",
+             12, kKnn, 0.5, 0},
+        Case{"indoor_vlp16_ppf", "--scene indoor --lidar vlp16 --motion car --speed 1.5", "vlp16",
+             12, kPpf, 0.5, 0},
+        Case{"indoor_os1_128_knn", "--scene indoor --lidar os1_128 --motion car --speed 1.5",
+             "os1_128", 8, kKnn, 0.5, 0},
         Case{"park_hdl32_knn", "--scene park --lidar hdl32", "hdl32", 12, kKnn, 1.0, 0},
         Case{"park_hdl32_ppf", "--scene park --lidar hdl32", "hdl32", 12, kPpf, 1.0, 0},
         Case{"ramps_hdl32_ppf", "--scene ramps --lidar hdl32", "hdl32", 12, kPpf, 0.5, 0},
-        Case{"handheld_indoor_vlp16_knn", "--scene indoor --lidar vlp16 --motion handheld", "vlp16", 12, kKnn, 0, 0.05},
-        Case{"handheld_indoor_vlp16_ppf", "--scene indoor --lidar vlp16 --motion handheld", "vlp16", 12, kPpf, 0, 0.05}),
+        Case{"handheld_indoor_vlp16_knn", "--scene indoor --lidar vlp16 --motion handheld", "vlp16",
+             12, kKnn, 0, 0.05},
+        Case{"handheld_indoor_vlp16_ppf", "--scene indoor --lidar vlp16 --motion handheld", "vlp16",
+             12, kPpf, 0, 0.05}),
     [](const ::testing::TestParamInfo<Case>& info) { return info.param.name; });
 
 }  // namespace

@@ -47,6 +47,14 @@ bool ParseStudyCommandLine(int argc, char** argv, StudyOptions* opts, bool* help
 // Help text lines for the options above (with the command's default sequence list).
 std::string StudyOptionsHelp(const std::string& default_sequences);
 
+// Makes `dir` hold a complete simulated sequence (metadata.yaml and groundtruth.tum present),
+// calling generate(out) only if it does not yet. generate writes into `out`, a private directory
+// with dir's name, which then takes dir's place in one rename: processes sharing a work directory
+// (ctest -j, two studies) never read or delete each other's half-written sequence. Returns false
+// if generate did; `dir` is then left as it was.
+bool GenerateSequenceOnce(const std::string& dir,
+                          const std::function<bool(const std::string& out)>& generate);
+
 // The sequence's directory under `workdir` (<scene>_<lidar>_<seconds>s), generated with ppf_sim
 // (seed 1, MCAP) unless a complete one is already there. ppf_sim is taken from PATH. Progress goes
 // to `log`, each line starting with `log_prefix`. Throws std::runtime_error if ppf_sim fails (its

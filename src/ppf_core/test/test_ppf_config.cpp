@@ -9,7 +9,7 @@ namespace ppf {
 namespace {
 
 TEST(PpfConfig, DefaultsScaleWithBeamCount) {
-  EXPECT_EQ(PpfConfigForBeams(16).plane_least_inliers, 150);
+  EXPECT_EQ(PpfConfigForBeams(16).plane_least_inliers, 80);
   EXPECT_EQ(PpfConfigForBeams(32).plane_least_inliers, 150);
   EXPECT_EQ(PpfConfigForBeams(64).plane_least_inliers, 400);
   EXPECT_GT(PpfConfigForBeams(128).plane_least_inliers, 400);
@@ -17,18 +17,18 @@ TEST(PpfConfig, DefaultsScaleWithBeamCount) {
   EXPECT_TRUE(PpfConfigForBeams(32).incremental_fitting);  // measured, see ppf_config.cpp
   EXPECT_TRUE(PpfConfigForBeams(64).incremental_fitting);
   EXPECT_TRUE(PpfConfigForBeams(128).incremental_fitting);
-  EXPECT_EQ(PpfConfigForBeams(0).plane_least_inliers, 150);  // unknown -> smallest class
+  EXPECT_EQ(PpfConfigForBeams(0).plane_least_inliers, 80);  // unknown -> smallest class
   const PpfConfig d;
-  EXPECT_DOUBLE_EQ(d.delta, 0.1);
-  EXPECT_DOUBLE_EQ(d.delta * d.semi_band_factor, 0.4);
+  EXPECT_DOUBLE_EQ(d.delta, 0.2);  // the paper: 0.1; wider because patches anchor (ppf_config.hpp)
+  EXPECT_DOUBLE_EQ(d.delta * d.semi_band_factor, 0.4);  // the paper's semi band, >= 2 eps
   EXPECT_DOUBLE_EQ(d.point_to_plane_thresh, 0.2);
   EXPECT_DOUBLE_EQ(d.skeleton_normal_gate_deg, 10.0);
-  EXPECT_EQ(d.max_planes_per_scan, 5);
+  EXPECT_EQ(d.max_planes_per_scan, 10);
   EXPECT_EQ(d.window_size, 5);
   EXPECT_EQ(d.ipca_iterations_new, 3);
   EXPECT_EQ(d.ipca_iterations_guess, 5);
   EXPECT_EQ(d.ransac_max_iterations, 300);
-  EXPECT_DOUBLE_EQ(d.min_remaining_ratio, 0.25);
+  EXPECT_DOUBLE_EQ(d.min_remaining_ratio, 0.1);
 }
 
 TEST(PpfConfig, DefaultsAreValid) {
@@ -65,7 +65,8 @@ TEST(PpfConfig, YamlEveryKeyOptional) {
     const auto r = LoadPpfConfigYamlString(text, &c);
     EXPECT_TRUE(r.ok) << text << ": " << r.error;
     EXPECT_TRUE(r.warnings.empty()) << text;
-    EXPECT_EQ(c.plane_least_inliers, 150);
+    EXPECT_EQ(c.plane_least_inliers, PpfConfig{}.plane_least_inliers);
+    EXPECT_EQ(c.plane_least_inliers, 80);
   }
 }
 
@@ -103,7 +104,7 @@ TEST(PpfConfig, YamlWrongTypeFailsAndLeavesConfigUnchanged) {
   r = LoadPpfConfigYamlString("ppf:\n  delta: -1\n", &c);
   EXPECT_TRUE(r.ok);
   EXPECT_EQ(r.warnings.size(), 1u);
-  EXPECT_DOUBLE_EQ(c.delta, 0.1);
+  EXPECT_DOUBLE_EQ(c.delta, 0.2);
 }
 
 }  // namespace

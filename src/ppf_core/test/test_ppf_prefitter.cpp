@@ -73,7 +73,8 @@ TEST(PpfPrefitter, PartitionCoversEveryPointOnce) {
   // Skeleton points of a plane are within delta of it.
   for (size_t k = 0; k < r.skeleton_indices.size(); ++k) {
     const Plane& pl = r.planes[r.skeleton_plane[k]].plane;
-    ASSERT_LT(pl.Distance(scene.points[r.skeleton_indices[k]].cast<double>()), 0.1);
+    ASSERT_LT(pl.Distance(scene.points[r.skeleton_indices[k]].cast<double>()),
+              TestConfig().delta);
   }
   int sum = 0;
   for (const auto& p : r.planes) sum += p.num_inliers;

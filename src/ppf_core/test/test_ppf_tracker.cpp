@@ -62,7 +62,8 @@ TEST(PpfTracker, LabelsRowsAndWindowThroughTheHooks) {
       // the small difference between this scan's fit and the earlier ones.
       EXPECT_GT(rows.size(), skeleton * 9 / 10);
       for (const PointPlaneRow& row : rows) {
-        ASSERT_LT(std::abs(row.normal_world.dot(PoseAt(scan) * row.point_lidar) + row.offset), 0.12);
+        ASSERT_LT(std::abs(row.normal_world.dot(PoseAt(scan) * row.point_lidar) + row.offset),
+                  cfg.delta + 0.02);
       }
       EXPECT_EQ(tracker.last_prefit().guesses_accepted, 3);
     }

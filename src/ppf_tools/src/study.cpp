@@ -162,11 +162,14 @@ bool GenerateSequenceOnce(const std::string& dir_name,
   const bool ok = generate(out.string()) && CompleteSequence(out);
   std::error_code ec;
   if (ok) {
-    if (!CompleteSequence(dir)) {
-      fs::remove_all(dir, ec);  // an incomplete leftover of an interrupted run
+    // rename() refuses a non-empty target, so a copy another process moved there first is never
+    // replaced (readers may have it open). A target that is there but incomplete can only be the
+    // leftover of an interrupted run of an older version: cleared, then one more try.
+    fs::rename(out, dir, ec);
+    if (ec && !CompleteSequence(dir)) {
+      fs::remove_all(dir, ec);
       fs::rename(out, dir, ec);
     }
-    // ec set: another process put its complete copy there first, which is as good.
   }
   fs::remove_all(staging, ec);
   return ok && CompleteSequence(dir);

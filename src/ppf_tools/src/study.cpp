@@ -157,7 +157,7 @@ bool GenerateSequenceOnce(const std::string& dir_name,
   const fs::path staging = dir.parent_path() / (".staging_" + dir.filename().string() + "_" +
                                                 std::to_string(::getpid()));
   fs::remove_all(staging);
-  fs::create_directories(staging);
+  fs::create_directories(staging);  // and the work directory itself
   const fs::path out = staging / dir.filename();
   const bool ok = generate(out.string()) && CompleteSequence(out);
   std::error_code ec;
@@ -181,7 +181,6 @@ std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::
   name << seq.scene << "_" << seq.lidar << "_" << static_cast<int>(duration) << "s";
   const fs::path dir = fs::path(workdir) / name.str();
   if (CompleteSequence(dir)) return dir.string();
-  fs::create_directories(dir.parent_path());
   const std::string sim_log = dir.string() + ".sim.log";
   log << log_prefix << "generating " << name.str() << " with ppf_sim...\n" << std::flush;
   const bool ok = GenerateSequenceOnce(dir.string(), [&](const std::string& out) {

@@ -52,7 +52,6 @@ fs::path SequenceDir(const Case& c) {
 
 std::string Generate(const Case& c) {
   const fs::path dir = SequenceDir(c);
-  fs::create_directories(dir.parent_path());
   // The knn and ppf cases of a sequence may run at once (ctest -j): generated once, atomically.
   const bool ok = ppf::tools::GenerateSequenceOnce(dir.string(), [&](const std::string& out) {
     std::ostringstream cmd;

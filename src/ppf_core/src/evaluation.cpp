@@ -219,32 +219,103 @@ bool Umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::V
   return true;
 }
 
+bool AlignPositionYaw(const std::vector<Eigen::Vector3d>& src,
+                      const std::vector<Eigen::Vector3d>& dst, Eigen::Matrix3d* R,
+                      Eigen::Vector3d* t) {
+  const size_t n = src.size();
+  if (n < 2 || dst.size() != n) return false;
+  Eigen::Vector3d ms = Eigen::Vector3d::Zero(), md = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    ms += src[i];
+    md += dst[i];
+  }
+  ms /= static_cast<double>(n);
+  md /= static_cast<double>(n);
+  // With R = Rz(yaw), sum |d - R s|^2 over the centred points depends on yaw only through
+  // -2 (cos(yaw) C + sin(yaw) S); z does not rotate, so only x and y enter C and S.
+  double c = 0.0, s = 0.0, spread = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d a = src[i] - ms, b = dst[i] - md;
+    c += a.x() * b.x() + a.y() * b.y();
+    s += a.x() * b.y() - a.y() * b.x();
+    spread += a.head<2>().squaredNorm() + b.head<2>().squaredNorm();
+  }
+  // Points stacked on one vertical line: every yaw fits equally well.
+  if (!(spread > 0.0) || std::hypot(c, s) <= 1e-12 * spread) return false;
+  *R = Eigen::AngleAxisd(std::atan2(s, c), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  *t = md - (*R) * ms;
+  return true;
+}
+
+double TiltDeg(const Eigen::Isometry3d& T_ref, const Eigen::Isometry3d& T_est) {
+  const Eigen::Vector3d g_ref = T_ref.linear().transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d g_est = T_est.linear().transpose() * Eigen::Vector3d::UnitZ();
+  // atan2 keeps full precision at small angles, where acos of the dot product loses it.
+  return std::atan2(g_ref.cross(g_est).norm(), g_ref.dot(g_est)) * 180.0 / M_PI;
+}
+
 namespace {
 
-// Associates and aligns: fills matched ref/est poses with the estimate transformed into the
-// reference frame (positions scaled for Sim(3)).
-bool Prepare(const Trajectory& ref, const Trajectory& est, const EvalOptions& o, Trajectory* r,
-             Trajectory* e, EvalResult* res) {
+// Gravity metrics over already associated poses r[k] <-> e[k] (estimate not aligned).
+GravityMetrics GravityOfAssociated(const Trajectory& r, const Trajectory& e, double tilt_after_s) {
+  GravityMetrics g;
+  if (r.empty() || r.size() != e.size()) return g;
+  std::vector<double> late;
+  const double t_from = r.front().stamp_s + tilt_after_s;
+  for (size_t k = 0; k < r.size(); ++k) {
+    const double tilt = TiltDeg(r[k].T, e[k].T);
+    g.tilt_deg.push_back(tilt);
+    // Small slack so that a pose stamped exactly tilt_after_s later is not lost to rounding.
+    if (r[k].stamp_s >= t_from - 1e-9) late.push_back(tilt);
+  }
+  g.tilt = ComputeStats(late);
+  // Moving the first estimate pose onto the reference one by a translation and a rotation about z
+  // shifts every estimated z by the same amount and rotates nothing out of the horizontal plane,
+  // so the height error is the difference of the climbs since the first pose.
+  const double z_e0 = e.front().T.translation().z(), z_r0 = r.front().T.translation().z();
+  for (size_t k = 0; k < r.size(); ++k) {
+    const double dz = (e[k].T.translation().z() - z_e0) - (r[k].T.translation().z() - z_r0);
+    g.max_abs_dz_m = std::max(g.max_abs_dz_m, std::abs(dz));
+    g.final_dz_m = dz;
+  }
+  g.path_length_m = PathLength(r);
+  g.ok = true;
+  return g;
+}
+
+bool Associate(const Trajectory& ref, const Trajectory& est, const EvalOptions& o, Trajectory* r,
+               Trajectory* e, size_t* matched, std::string* error) {
   const auto pairs = AssociateByStamp(ref, est, o.max_diff, o.offset);
-  res->matched = pairs.size();
+  *matched = pairs.size();
   if (pairs.empty()) {
-    res->error = "no matching stamps (max_diff " + std::to_string(o.max_diff) + " s)";
+    if (error) *error = "no matching stamps (max_diff " + std::to_string(o.max_diff) + " s)";
     return false;
   }
   for (const auto& [i, j] : pairs) {
     r->push_back(ref[i]);
     e->push_back(est[j]);
   }
+  return true;
+}
+
+// Transforms the associated estimate poses e into the reference frame (positions scaled for
+// Sim(3)).
+bool Align(const Trajectory& r, const EvalOptions& o, Trajectory* e, EvalResult* res) {
   if (o.align == Alignment::kNone) return true;
   std::vector<Eigen::Vector3d> src, dst;
-  for (size_t k = 0; k < r->size(); ++k) {
+  for (size_t k = 0; k < r.size(); ++k) {
     src.push_back((*e)[k].T.translation());
-    dst.push_back((*r)[k].T.translation());
+    dst.push_back(r[k].T.translation());
   }
   Eigen::Matrix3d R;
   Eigen::Vector3d t;
   double s = 1.0;
-  if (!Umeyama(src, dst, o.align == Alignment::kSim3, &R, &t, &s)) {
+  if (o.align == Alignment::kPosYaw) {
+    if (!AlignPositionYaw(src, dst, &R, &t)) {
+      res->error = "alignment failed (need >= 2 matched positions with horizontal extent)";
+      return false;
+    }
+  } else if (!Umeyama(src, dst, o.align == Alignment::kSim3, &R, &t, &s)) {
     res->error = "alignment failed (need >= 3 non-collinear matched positions)";
     return false;
   }
@@ -258,12 +329,22 @@ bool Prepare(const Trajectory& ref, const Trajectory& est, const EvalOptions& o,
   return true;
 }
 
+// Associates and aligns: fills matched ref/est poses with the estimate in the reference frame.
+bool Prepare(const Trajectory& ref, const Trajectory& est, const EvalOptions& o, Trajectory* r,
+             Trajectory* e, EvalResult* res) {
+  return Associate(ref, est, o, r, e, &res->matched, &res->error) && Align(*r, o, e, res);
+}
+
 }  // namespace
 
 EvalResult ComputeApe(const Trajectory& ref, const Trajectory& est, const EvalOptions& o) {
   EvalResult res;
   Trajectory r, e;
-  if (!Prepare(ref, est, o, &r, &e, &res)) return res;
+  if (!Associate(ref, est, o, &r, &e, &res.matched, &res.error)) return res;
+  // Before the alignment: SE(3)/Sim(3) would rotate the estimate's world z towards the
+  // reference's and hide the very tilt these metrics are for.
+  res.gravity = GravityOfAssociated(r, e, o.tilt_after_s);
+  if (!Align(r, o, &e, &res)) return res;
   for (size_t k = 0; k < r.size(); ++k) {
     res.errors.push_back((r[k].T.translation() - e[k].T.translation()).norm());
   }
@@ -308,6 +389,14 @@ EvalResult ComputeRpe(const Trajectory& ref, const Trajectory& est, const EvalOp
   return res;
 }
 
+GravityMetrics ComputeGravityMetrics(const Trajectory& ref, const Trajectory& est,
+                                     const EvalOptions& o, std::string* error) {
+  Trajectory r, e;
+  size_t matched = 0;
+  if (!Associate(ref, est, o, &r, &e, &matched, error)) return GravityMetrics();
+  return GravityOfAssociated(r, e, o.tilt_after_s);
+}
+
 double PathLength(const Trajectory& traj) {
   double len = 0.0;
   for (size_t k = 1; k < traj.size(); ++k) {
@@ -341,8 +430,32 @@ const char* AlignmentDescription(Alignment align) {
       return "(with SE(3) Umeyama alignment)";
     case Alignment::kSim3:
       return "(with Sim(3) Umeyama alignment)";
+    case Alignment::kPosYaw:
+      return "(with position + yaw (4-DoF) alignment)";
   }
   return "";
+}
+
+std::string FormatGravityLines(const GravityMetrics& g, double tilt_after_s) {
+  if (!g.ok) return "";
+  char buf[256];
+  std::string out;
+  if (g.tilt.count > 0) {
+    std::snprintf(buf, sizeof(buf),
+                  "tilt vs. true gravity (deg, not aligned; %zu poses from %g s on): median %.4f, "
+                  "max %.4f\n",
+                  g.tilt.count, tilt_after_s, g.tilt.median, g.tilt.max);
+  } else {
+    std::snprintf(buf, sizeof(buf),
+                  "tilt vs. true gravity (deg, not aligned): no pose from %g s on\n", tilt_after_s);
+  }
+  out += buf;
+  std::snprintf(buf, sizeof(buf),
+                "height error (first pose matched by translation + yaw): final %+.4f m (%+.4f %% "
+                "of a %.1f m path), max |dz| %.4f m\n",
+                g.final_dz_m, g.FinalDzPercent(), g.path_length_m, g.max_abs_dz_m);
+  out += buf;
+  return out;
 }
 
 }  // namespace ppf

@@ -210,5 +210,204 @@ TEST(Evaluation, StatsTableListsEvoRowsInEvoOrder) {
   EXPECT_NE(t.find("      rmse\t0.216025\n"), std::string::npos) << t;
 }
 
+// A rigid motion that only yaws and translates: what the 4-DoF alignment may remove.
+Eigen::Isometry3d YawMove(double yaw, const Eigen::Vector3d& t) {
+  Eigen::Isometry3d G = Eigen::Isometry3d::Identity();
+  G.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  G.translation() = t;
+  return G;
+}
+
+Eigen::Isometry3d RotX(double angle) {
+  Eigen::Isometry3d G = Eigen::Isometry3d::Identity();
+  G.linear() = Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  return G;
+}
+
+double Deg(double d) { return d * M_PI / 180.0; }
+
+// A wavy, climbing, non-symmetric path with rolling and pitching orientations.
+Trajectory Wiggly(int n) {
+  Trajectory ref;
+  for (int i = 0; i < n; ++i) {
+    const double u = 0.1 * i;
+    Eigen::Isometry3d T = Pose(3.0 * u, std::sin(u) + 0.2 * u * u, 0.05 * u, 0.4 * u);
+    T.linear() = T.linear() *
+                 Eigen::AngleAxisd(0.1 * std::cos(u), Eigen::Vector3d::UnitX()).toRotationMatrix();
+    ref.push_back({u, T});
+  }
+  return ref;
+}
+
+TEST(Evaluation, PosYawRecoversAKnownYawAndTranslation) {
+  const Trajectory ref = Wiggly(50);
+  const Eigen::Isometry3d G = YawMove(2.5, Eigen::Vector3d(10.0, -4.0, 1.5));
+  Trajectory est;
+  for (const StampedPose& p : ref) est.push_back({p.stamp_s, G * p.T});
+  EvalOptions o;
+  o.align = Alignment::kPosYaw;
+  const EvalResult r = ComputeApe(ref, est, o);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(r.matched, 50u);
+  EXPECT_LT(r.stats.max, 1e-9);
+  EXPECT_TRUE(r.T_ref_est.isApprox(G.inverse(), 1e-9)) << r.T_ref_est.matrix();
+  EXPECT_EQ(r.scale, 1.0);
+  // Without alignment the same estimate is far off: the check above is not vacuous.
+  o.align = Alignment::kNone;
+  EXPECT_GT(ComputeApe(ref, est, o).stats.min, 1.0);
+}
+
+// Reference: the corners (+-1, +-1, 0) of a square. Estimate: the reference in a world rolled by
+// 1 degree about x, then yawed and moved by G. Rolled, a corner (x, y, 0) becomes
+// (x, y cos a, y sin a): centred still, and sum(x_e y_r - y_e x_r) = (1 - cos a) sum(x y) = 0
+// over the square, so the best yaw undoes G's and nothing more. Every corner then stays off by
+// |(0, y (1 - cos a), -y sin a)| = 2 sin(a / 2) with |y| = 1: that is the 4-DoF APE.
+TEST(Evaluation, PosYawKeepsARolledWorldAsError) {
+  const double xy[4][2] = {{1, 1}, {-1, 1}, {-1, -1}, {1, -1}};
+  const double a = Deg(1.0);
+  const Eigen::Isometry3d G = YawMove(-0.8, Eigen::Vector3d(3.0, -2.0, 1.0));
+  Trajectory ref, est;
+  for (int i = 0; i < 4; ++i) {
+    ref.push_back({1.0 * i, Pose(xy[i][0], xy[i][1], 0.0, 0.5 * i)});
+    est.push_back({1.0 * i, G * RotX(a) * ref.back().T});
+  }
+  EvalOptions o;
+  o.align = Alignment::kPosYaw;
+  const EvalResult r = ComputeApe(ref, est, o);
+  ASSERT_TRUE(r.ok) << r.error;
+  const double expected = 2.0 * std::sin(a / 2.0);
+  EXPECT_NEAR(r.stats.rmse, expected, 1e-6);
+  EXPECT_NEAR(r.stats.min, expected, 1e-6);
+  EXPECT_NEAR(r.stats.max, expected, 1e-6);
+  EXPECT_TRUE(r.T_ref_est.isApprox(G.inverse(), 1e-9)) << r.T_ref_est.matrix();
+  // SE(3) may rotate about x too and hides the roll entirely.
+  o.align = Alignment::kSE3;
+  const EvalResult se3 = ComputeApe(ref, est, o);
+  ASSERT_TRUE(se3.ok) << se3.error;
+  EXPECT_LT(se3.stats.max, 1e-9);
+  // The roll is also what the tilt measures, whatever the alignment.
+  ASSERT_TRUE(r.gravity.ok);
+  EXPECT_NEAR(r.gravity.tilt.max, 1.0, 1e-9);
+  EXPECT_NEAR(se3.gravity.tilt.max, 1.0, 1e-9);
+}
+
+TEST(Evaluation, PosYawNeedsHorizontalExtent) {
+  // A vertical line: every yaw fits.
+  Trajectory ref = {{0, Pose(0, 0, 0)}, {1, Pose(0, 0, 1)}, {2, Pose(0, 0, 2)}};
+  EvalOptions o;
+  o.align = Alignment::kPosYaw;
+  const EvalResult r = ComputeApe(ref, ref, o);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("alignment"), std::string::npos);
+  // A straight horizontal line is enough for yaw (SE(3) would refuse it).
+  Trajectory line = {{0, Pose(0, 0, 0)}, {1, Pose(1, 0, 0)}, {2, Pose(2, 0, 0)}};
+  Trajectory moved;
+  for (const StampedPose& p : line) {
+    moved.push_back({p.stamp_s, YawMove(1.0, Eigen::Vector3d(1, 2, 3)) * p.T});
+  }
+  const EvalResult l = ComputeApe(line, moved, o);
+  ASSERT_TRUE(l.ok) << l.error;
+  EXPECT_LT(l.stats.max, 1e-9);
+}
+
+TEST(Evaluation, TiltOfAWorldRolledByHalfADegree) {
+  const Trajectory ref = Wiggly(40);
+  const Eigen::Isometry3d roll = RotX(Deg(0.5));
+  Trajectory est;
+  for (const StampedPose& p : ref) est.push_back({p.stamp_s, roll * p.T});
+  const GravityMetrics g = ComputeGravityMetrics(ref, est, EvalOptions());
+  ASSERT_TRUE(g.ok);
+  ASSERT_EQ(g.tilt_deg.size(), 40u);
+  for (double t : g.tilt_deg) EXPECT_NEAR(t, 0.5, 1e-9);
+  EXPECT_EQ(g.tilt.count, 40u);
+  EXPECT_NEAR(g.tilt.median, 0.5, 1e-9);
+  EXPECT_NEAR(g.tilt.max, 0.5, 1e-9);
+}
+
+TEST(Evaluation, TiltIgnoresYawAndCountsOnlyPosesAfterTheOffset) {
+  const Trajectory ref = Wiggly(40);  // stamps 0, 0.1, ..., 3.9 s
+  Trajectory est;
+  for (const StampedPose& p : ref) {
+    // Yawed and moved everywhere; tilted by 2 degrees about y only in the first second.
+    Eigen::Isometry3d T = YawMove(1.2, Eigen::Vector3d(5, 6, 7)) * p.T;
+    if (p.stamp_s < 1.0 - 1e-9) {
+      T.linear() =
+          Eigen::AngleAxisd(Deg(2.0), Eigen::Vector3d::UnitY()).toRotationMatrix() * T.linear();
+    }
+    est.push_back({p.stamp_s, T});
+  }
+  EvalOptions o;
+  GravityMetrics g = ComputeGravityMetrics(ref, est, o);
+  ASSERT_TRUE(g.ok);
+  EXPECT_NEAR(g.tilt.max, 2.0, 1e-9);
+  EXPECT_NEAR(g.tilt_deg.back(), 0.0, 1e-9);
+  o.tilt_after_s = 1.0;
+  g = ComputeGravityMetrics(ref, est, o);
+  ASSERT_TRUE(g.ok);
+  EXPECT_EQ(g.tilt.count, 30u);  // 1.0 s .. 3.9 s
+  EXPECT_NEAR(g.tilt.max, 0.0, 1e-9);
+  EXPECT_NEAR(g.tilt.median, 0.0, 1e-9);
+  o.tilt_after_s = 10.0;  // past the end: no pose to measure, not a tilt of zero
+  g = ComputeGravityMetrics(ref, est, o);
+  ASSERT_TRUE(g.ok);
+  EXPECT_EQ(g.tilt.count, 0u);
+}
+
+// A level straight line of length L along y; the estimate pitches its world by `a` about the x
+// axis through the first position, and is then yawed and moved. The final height error is
+// L sin(a), the largest too; in % of the path 100 sin(a).
+TEST(Evaluation, HeightErrorOfATiltedStraightLine) {
+  const double L = 120.0, a = Deg(0.5);
+  const Eigen::Vector3d p0(4.0, -3.0, 2.0);
+  auto pitched_about_p0 = [&](double angle) {
+    return Eigen::Translation3d(p0) * RotX(angle) * Eigen::Translation3d(-p0);
+  };
+  const Eigen::Isometry3d G = YawMove(2.0, Eigen::Vector3d(-7.0, 1.0, 9.0)) * pitched_about_p0(a);
+  Trajectory ref, est;
+  for (int i = 0; i <= 60; ++i) {
+    const Eigen::Isometry3d T = Pose(p0.x(), p0.y() + L * i / 60.0, p0.z(), 0.3);
+    ref.push_back({0.5 * i, T});
+    est.push_back({0.5 * i + 0.003, G * T});
+  }
+  EvalOptions o;
+  o.align = Alignment::kPosYaw;
+  const EvalResult r = ComputeApe(ref, est, o);
+  ASSERT_TRUE(r.ok) << r.error;
+  const GravityMetrics& g = r.gravity;
+  ASSERT_TRUE(g.ok);
+  EXPECT_NEAR(g.path_length_m, L, 1e-9);
+  EXPECT_NEAR(g.final_dz_m, L * std::sin(a), 1e-9);
+  EXPECT_NEAR(g.max_abs_dz_m, L * std::sin(a), 1e-9);
+  EXPECT_NEAR(g.FinalDzPercent(), 100.0 * std::sin(a), 1e-9);
+  EXPECT_NEAR(g.tilt.max, 0.5, 1e-9);
+  // Pitched the other way: the sign follows.
+  est.clear();
+  const Eigen::Isometry3d H = pitched_about_p0(-a);
+  for (const StampedPose& p : ref) est.push_back({p.stamp_s, H * p.T});
+  const GravityMetrics down = ComputeGravityMetrics(ref, est, o);
+  ASSERT_TRUE(down.ok);
+  EXPECT_NEAR(down.final_dz_m, -L * std::sin(a), 1e-9);
+  EXPECT_NEAR(down.max_abs_dz_m, L * std::sin(a), 1e-9);
+}
+
+TEST(Evaluation, GravityLinesNameTheirNumbers) {
+  GravityMetrics g;
+  EXPECT_EQ(FormatGravityLines(g, 0.0), "");  // nothing matched: nothing to say
+  g.ok = true;
+  g.tilt = ComputeStats({0.1, 0.3, 0.2});
+  g.final_dz_m = -0.25;
+  g.max_abs_dz_m = 0.5;
+  g.path_length_m = 100.0;
+  const std::string s = FormatGravityLines(g, 10.0);
+  EXPECT_NE(s.find("3 poses from 10 s on): median 0.2000, max 0.3000\n"), std::string::npos) << s;
+  EXPECT_NE(s.find("final -0.2500 m (-0.2500 % of a 100.0 m path), max |dz| 0.5000 m\n"),
+            std::string::npos)
+      << s;
+  // ppf_eval's callers read the last "rmse" line of its output as the APE: never here.
+  EXPECT_EQ(s.find("rmse"), std::string::npos);
+  g.tilt = ComputeStats({});
+  EXPECT_NE(FormatGravityLines(g, 10.0).find("no pose from 10 s on"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace ppf

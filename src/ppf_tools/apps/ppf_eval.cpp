@@ -1,10 +1,16 @@
 // ppf_eval: APE / RPE of a trajectory against a reference, computed as evo does (see
 // ppf_core/evaluation.hpp), printed as an evo-like table.
 //
-//   ppf_eval ape --ref gt.tum --est traj.tum [--align se3|sim3|none] [--max-diff 0.01]
+//   ppf_eval ape --ref gt.tum --est traj.tum [--align se3|sim3|posyaw|none] [--max-diff 0.01]
 //                [--offset 0.0] [--ref-format tum|kitti] [--est-format tum|kitti]
+//                [--tilt-after 0.0]
 //   ppf_eval rpe --ref gt.tum --est traj.tum [--delta 1] [--delta-unit f|m]
-//                [--align none|se3|sim3] [--max-diff 0.01] [--offset 0.0]
+//                [--align none|se3|sim3|posyaw] [--max-diff 0.01] [--offset 0.0]
+//
+// After the APE table come the tilt between the estimated and the true gravity direction and the
+// height error, whatever the alignment: they compare the two worlds' "up" as they are, so both
+// trajectories must be in gravity-aligned, z-up worlds (TUM ground truth of a LiDAR-inertial
+// dataset and our estimates are; a KITTI camera frame is not).
 //
 // Formats follow the file extension (.kitti -> KITTI, anything else TUM) unless given. KITTI files
 // have no stamps: poses are numbered 0, 1, 2, ... and associate by index.
@@ -21,11 +27,17 @@ int Usage(const char* msg) {
   if (msg) std::fprintf(stderr, "ppf_eval: %s\n\n", msg);
   std::fprintf(stderr,
                "usage:\n"
-               "  ppf_eval ape --ref REF --est EST [--align se3|sim3|none] [--max-diff S]\n"
+               "  ppf_eval ape --ref REF --est EST [--align se3|sim3|posyaw|none] [--max-diff S]\n"
                "               [--offset S] [--ref-format tum|kitti] [--est-format tum|kitti]\n"
+               "               [--tilt-after S]\n"
                "  ppf_eval rpe --ref REF --est EST [--delta N] [--delta-unit f|m]\n"
-               "               [--align none|se3|sim3] [--max-diff S] [--offset S]\n"
-               "APE default alignment: se3 (evo_ape -a); RPE default: none (evo_rpe).\n");
+               "               [--align none|se3|sim3|posyaw] [--max-diff S] [--offset S]\n"
+               "APE default alignment: se3 (evo_ape -a); RPE default: none (evo_rpe).\n"
+               "posyaw: position + yaw (4 DoF), for odometry that observes gravity.\n"
+               "APE also prints the tilt between estimated and true gravity (median, max over the\n"
+               "poses from --tilt-after S seconds after the first matched stamp on, default 0) and\n"
+               "the height error with the first pose matched by translation + yaw; both need\n"
+               "gravity-aligned z-up worlds and no alignment.\n");
   return 1;
 }
 
@@ -75,14 +87,18 @@ int main(int argc, char** argv) {
     } else if (a == "--align") {
       if (v == "se3") o.align = ppf::Alignment::kSE3;
       else if (v == "sim3") o.align = ppf::Alignment::kSim3;
+      else if (v == "posyaw") o.align = ppf::Alignment::kPosYaw;
       else if (v == "none") o.align = ppf::Alignment::kNone;
-      else return Usage("--align must be se3, sim3 or none");
+      else return Usage("--align must be se3, sim3, posyaw or none");
     } else if (a == "--max-diff") {
       if (!ParseNumber(v, &num) || num < 0) return Usage("--max-diff needs a number >= 0");
       o.max_diff = num;
     } else if (a == "--offset") {
       if (!ParseNumber(v, &num)) return Usage("--offset needs a number");
       o.offset = num;
+    } else if (a == "--tilt-after" && metric == "ape") {
+      if (!ParseNumber(v, &num) || num < 0) return Usage("--tilt-after needs a number >= 0");
+      o.tilt_after_s = num;
     } else if (a == "--delta" && metric == "rpe") {
       if (!ParseNumber(v, &num) || num <= 0) return Usage("--delta needs a number > 0");
       o.delta = num;
@@ -122,5 +138,8 @@ int main(int argc, char** argv) {
     title = buf;
   }
   std::printf("%s", ppf::FormatStatsTable(title, ppf::AlignmentDescription(o.align), r.stats).c_str());
+  if (metric == "ape") {
+    std::printf("\n%s", ppf::FormatGravityLines(r.gravity, o.tilt_after_s).c_str());
+  }
   return 0;
 }

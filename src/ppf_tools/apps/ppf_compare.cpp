@@ -1,5 +1,6 @@
 // ppf_compare: kNN mode vs PPF mode of the same pipeline on the same simulated sequences, in one
-// run: stage timings, throughput, local map size, APE/RPE, and the targets.
+// run: stage timings, throughput, local map size, APE (SE(3) and position+yaw aligned), RPE, the
+// tilt of the estimated gravity, the final height error, and the targets.
 //
 //   ppf_compare                    # full: 60 s urban HDL-64 / urban HDL-32 / indoor VLP-16 / park HDL-32
 //   ppf_compare --short            # CI: shorter sequences, same table
@@ -43,12 +44,16 @@ int main(int argc, char** argv) {
     std::cout << "usage: ppf_compare [options]\n\n"
                  "Runs --mode knn and --mode ppf on the same simulated sequences (generated with\n"
                  "ppf_sim on first use) and prints one table: stage timings, scans per second,\n"
-                 "local map size, APE/RPE.\n\n"
+                 "local map size, APE (SE(3)-aligned and position+yaw-aligned), RPE, the tilt\n"
+                 "between the estimated and the true gravity (median, max; degrees, from\n"
+                 "--tilt-after on) and the final height error (first pose matched by translation\n"
+                 "+ yaw).\n\n"
               << ppf::tools::StudyOptionsHelp(kDefaultSequences)
               << "  -h, --help            this text\n";
     return 0;
   }
   const double duration = opts.EffectiveDuration();
+  const double tilt_after = opts.EffectiveTiltAfter();
   std::vector<ppf::tools::SequenceSpec> sequences;
   if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
 
@@ -72,18 +77,25 @@ int main(int argc, char** argv) {
     ppf::Trajectory gt;
     if (!ppf::ReadTum(bag + "/groundtruth.tum", &gt, &error)) Fail(error);
     std::cerr << "ppf_compare: " << seq.Name() << ": knn...\n";
-    Row row{seq, ppf::tools::RunAndEvaluate(bag, config, ppf::Mode::kKnn, gt), {}};
+    Row row{seq, ppf::tools::RunAndEvaluate(bag, config, ppf::Mode::kKnn, gt, tilt_after), {}};
     std::cerr << "ppf_compare: " << seq.Name() << ": ppf...\n";
-    row.ppf = ppf::tools::RunAndEvaluate(bag, config, ppf::Mode::kPpf, gt);
+    row.ppf = ppf::tools::RunAndEvaluate(bag, config, ppf::Mode::kPpf, gt, tilt_after);
     rows.push_back(std::move(row));
   }
 
-  std::cout << "\nkNN vs PPF, " << duration << " s sequences (mean per scan; ms; map in points)\n";
+  std::cout << "\nkNN vs PPF, " << duration
+            << " s sequences (mean per scan; ms; map in points; posyaw: APE aligned by position +"
+               " yaw only; tilt: degrees between\nestimated and true gravity from "
+            << tilt_after
+            << " s after the first pose on; dz: final height error, first pose matched by"
+               " translation + yaw)\n";
   std::cout << std::left << std::setw(15) << "sequence" << std::setw(6) << "mode" << std::right
             << std::setw(9) << "scans/s" << std::setw(8) << "total" << std::setw(8) << "ppf"
             << std::setw(8) << "resid" << std::setw(8) << "update" << std::setw(8) << "map-ins"
             << std::setw(10) << "map pts" << std::setw(9) << "skel pts" << std::setw(9) << "APE m"
-            << std::setw(8) << "APE %" << std::setw(9) << "RPE m" << "\n";
+            << std::setw(8) << "APE %" << std::setw(9) << "RPE m" << std::setw(9) << "posyaw m"
+            << std::setw(9) << "tilt med" << std::setw(9) << "tilt max" << std::setw(9) << "dz m"
+            << "\n";
   auto print = [](const std::string& name, const char* mode, const ModeResult& m) {
     const auto& s = m.summary;
     std::cout << std::left << std::setw(15) << name << std::setw(6) << mode << std::right
@@ -95,7 +107,13 @@ int main(int argc, char** argv) {
               << (m.ape.ok ? m.ape.stats.rmse : -1.0) << std::setprecision(2) << std::setw(8)
               << m.ApePercent()
               << std::setprecision(3) << std::setw(9) << (m.rpe.ok ? m.rpe.stats.rmse : -1.0)
-              << "\n";
+              << std::setw(9) << (m.ape_posyaw.ok ? m.ape_posyaw.stats.rmse : -1.0);
+    if (m.gravity.tilt.count > 0) {
+      std::cout << std::setw(9) << m.gravity.tilt.median << std::setw(9) << m.gravity.tilt.max;
+    } else {
+      std::cout << std::setw(9) << "-" << std::setw(9) << "-";  // no pose that late
+    }
+    std::cout << std::showpos << std::setw(9) << m.gravity.final_dz_m << std::noshowpos << "\n";
   };
   bool all_ok = true;
   std::ostringstream targets;

@@ -103,6 +103,12 @@ int ParseStudyOption(int argc, char** argv, int* i, StudyOptions* opts, std::str
   } else if (a == "--threads") {
     if (!number(&n)) return -1;
     opts->threads = static_cast<int>(n);
+  } else if (a == "--tilt-after") {
+    if (!number(&opts->tilt_after)) return -1;
+    if (!(opts->tilt_after >= 0)) {
+      *error = "--tilt-after must be >= 0";
+      return -1;
+    }
   } else {
     return 0;
   }
@@ -139,7 +145,9 @@ std::string StudyOptionsHelp(const std::string& default_sequences) {
          "  --workdir DIR         where sequences are generated/reused (default: out/compare,\n"
          "                        shared by ppf_compare and ppf_accuracy_study)\n"
          "  --config-dir DIR      LiDAR presets <lidar>.yaml (default: the repository's config/)\n"
-         "  --threads N           OpenMP threads for the core (default: the preset's)\n";
+         "  --threads N           OpenMP threads for the core (default: the preset's)\n"
+         "  --tilt-after S        tilt statistics from S seconds after the first pose on\n"
+         "                        (default 10, --short 2)\n";
 }
 
 namespace {
@@ -237,18 +245,27 @@ std::string SequenceMotion(const std::string& bag) {
   return "";
 }
 
-ModeRun RunAndEvaluate(const std::string& bag, const Config& base, Mode mode,
-                       const Trajectory& gt) {
+void Evaluate(const Trajectory& gt, const Trajectory& est, double tilt_after, ModeRun* run) {
+  EvalOptions eval;
+  eval.align = Alignment::kSE3;
+  eval.tilt_after_s = tilt_after;
+  run->ape = ComputeApe(gt, est, eval);
+  run->rpe = ComputeRpe(gt, est, eval);
+  eval.align = Alignment::kPosYaw;
+  run->ape_posyaw = ComputeApe(gt, est, eval);
+  run->gravity = run->ape.gravity;
+  run->tilt_after = tilt_after;
+  run->path_length = PathLength(gt);
+}
+
+ModeRun RunAndEvaluate(const std::string& bag, const Config& base, Mode mode, const Trajectory& gt,
+                       double tilt_after) {
   Config config = base;
   config.mode = mode;
   ModeRun out;
   auto run = RunOffline(bag, config);
   out.summary = Summarize(run.results, run.wall_s);
-  EvalOptions eval;
-  eval.align = Alignment::kSE3;
-  out.ape = ComputeApe(gt, run.trajectory, eval);
-  out.rpe = ComputeRpe(gt, run.trajectory, eval);
-  out.path_length = PathLength(gt);
+  Evaluate(gt, run.trajectory, tilt_after, &out);
   out.trajectory = std::move(run.trajectory);
   out.results = std::move(run.results);
   return out;
@@ -276,6 +293,47 @@ AccuracyBound BoundFor(const std::string& scene, const std::string& motion) {
   b.max_percent = scene == "park" ? 1.0 : 0.5;
   if (motion == "handheld") b.max_abs_m = 0.05;
   return b;
+}
+
+double GravityBound::PosYawLimit(const ModeRun& run) const {
+  return max_posyaw_ratio * run.ape.stats.rmse + posyaw_slack_m;
+}
+
+bool GravityBound::PosYawMet(const ModeRun& run) const {
+  return run.ape.ok && run.ape_posyaw.ok && run.ape_posyaw.stats.rmse <= PosYawLimit(run);
+}
+
+bool GravityBound::TiltMet(const ModeRun& run) const {
+  return run.gravity.ok && run.gravity.tilt.count > 0 && run.gravity.tilt.max <= max_tilt_deg;
+}
+
+std::string DescribeGravityBounds(const GravityBound& bound, const std::string& name,
+                                  const ModeRun& run, bool* all_met) {
+  char buf[256];
+  std::string out;
+  auto line = [&](bool met, const char* what) {
+    out += std::string("  ") + (met ? "met   " : "MISSED") + "  " + name + ": " + what + "\n";
+    if (all_met) *all_met = *all_met && met;
+  };
+  if (run.ape.ok && run.ape_posyaw.ok) {
+    std::snprintf(buf, sizeof(buf),
+                  "position+yaw APE %.3f m <= %g x SE(3) APE %.3f m + %g m = %.3f m",
+                  run.ape_posyaw.stats.rmse, bound.max_posyaw_ratio, run.ape.stats.rmse,
+                  bound.posyaw_slack_m, bound.PosYawLimit(run));
+  } else {
+    std::snprintf(buf, sizeof(buf), "position+yaw APE <= %g x SE(3) APE + %g m: no APE",
+                  bound.max_posyaw_ratio, bound.posyaw_slack_m);
+  }
+  line(bound.PosYawMet(run), buf);
+  if (run.gravity.ok && run.gravity.tilt.count > 0) {
+    std::snprintf(buf, sizeof(buf), "max tilt after %g s %.3f deg <= %g deg", run.tilt_after,
+                  run.gravity.tilt.max, bound.max_tilt_deg);
+  } else {
+    std::snprintf(buf, sizeof(buf), "max tilt after %g s <= %g deg: no pose after %g s",
+                  run.tilt_after, bound.max_tilt_deg, run.tilt_after);
+  }
+  line(bound.TiltMet(run), buf);
+  return out;
 }
 
 }  // namespace ppf::tools

@@ -27,10 +27,12 @@ constexpr const char* kUsage = R"(usage: ppf_endurance [options]
 
 Simulates a drive with ppf_sim's generator and streams it into ppf::LioPpf in the same process
 (nothing is written to disk). Every minute of simulated time it prints the distance driven, the
-local map (points, voxels; in PPF mode also the plane patches), the process memory (VmRSS) and the APE
-of the trajectory so far; at the
-end the map maximum in each half of the drive, the memory growth over the second half, how
-often the drive left the map's bound radius, and the APE against the exact ground truth.
+local map (points, voxels; in PPF mode also the plane patches), the process memory (VmRSS), the APE
+of the trajectory so far (SE(3)-aligned and position+yaw-aligned), the largest tilt between the
+estimated and the true gravity so far (degrees, from --tilt-after on) and the height error (first
+pose matched by translation + yaw); at the end the map maximum in each half of the drive, the
+memory growth over the second half, how often the drive left the map's bound radius, and the APE,
+tilt and height error against the exact ground truth.
 
   --duration S        simulated seconds (default 600)
   --scene NAME        urban | park | ramps | indoor (default urban)
@@ -45,6 +47,7 @@ often the drive left the map's bound radius, and the APE against the exact groun
   --threads N         OpenMP threads for the core (default: the config's)
   --seed N            simulation seed (default 1)
   --report-every S    simulated seconds between rows (default 60)
+  --tilt-after S      tilt statistics from S seconds after the first pose on (default 10)
   -h, --help          this text
 )";
 
@@ -99,11 +102,14 @@ int main(int argc, char** argv) {
       opts.seed = static_cast<uint64_t>(Number(a, v));
     else if (a == "--report-every")
       opts.report_every = Number(a, v);
+    else if (a == "--tilt-after")
+      opts.tilt_after = Number(a, v);
     else
       Fail("unknown option '" + a + "' (see --help)");
   }
   if (!(opts.duration >= 10.0)) Fail("--duration must be at least 10 s");
   if (!(opts.report_every > 0.0)) Fail("--report-every must be positive");
+  if (!(opts.tilt_after >= 0.0)) Fail("--tilt-after must be >= 0");
   if (mode != "knn" && mode != "ppf") Fail("--mode must be knn or ppf, not '" + mode + "'");
   auto known = [](const std::vector<std::string>& names, const std::string& name) {
     std::string list;
@@ -130,7 +136,8 @@ int main(int argc, char** argv) {
             << " points, roam radius " << opts.roam_radius << " m, seed " << opts.seed << "\n\n";
   std::cout << std::right << std::setw(8) << "sim s" << std::setw(9) << "dist km" << std::setw(11)
             << "map pts" << std::setw(10) << "voxels" << std::setw(11) << "max pts" << std::setw(9)
-            << "patches" << std::setw(9) << "RSS MB" << std::setw(10) << "APE m" << std::setw(8)
+            << "patches" << std::setw(9) << "RSS MB" << std::setw(10) << "APE m" << std::setw(10)
+            << "posyaw m" << std::setw(10) << "tilt max" << std::setw(9) << "dz m" << std::setw(8)
             << "posed" << std::setw(9) << "wall s"
             << "\n"
             << std::flush;
@@ -139,8 +146,15 @@ int main(int argc, char** argv) {
               << std::setprecision(2) << std::setw(9) << r.distance / 1000.0 << std::setw(11)
               << r.map_points << std::setw(10) << r.map_voxels << std::setw(11) << r.max_map_points
               << std::setw(9) << r.patches << std::setprecision(1) << std::setw(9) << r.rss_mb
-              << std::setprecision(2) << std::setw(10) << r.ape_rmse << std::setw(8) << r.posed
-              << std::setprecision(0) << std::setw(9) << r.wall_s << "\n"
+              << std::setprecision(2) << std::setw(10) << r.ape_rmse << std::setw(10)
+              << r.ape_posyaw_rmse << std::setprecision(3);
+    if (r.tilt_max_deg >= 0) {
+      std::cout << std::setw(10) << r.tilt_max_deg;
+    } else {
+      std::cout << std::setw(10) << "-";  // no pose past --tilt-after yet
+    }
+    std::cout << std::showpos << std::setprecision(2) << std::setw(9) << r.dz_m << std::noshowpos
+              << std::setw(8) << r.posed << std::setprecision(0) << std::setw(9) << r.wall_s << "\n"
               << std::flush;
   };
 
@@ -183,6 +197,16 @@ int main(int argc, char** argv) {
               << " %)\n";
   } else {
     std::cout << "APE: " << rep.ape.error << "\n";
+  }
+  if (rep.ape_posyaw.ok) {
+    std::cout << std::setprecision(3) << "APE (position+yaw-aligned) rmse "
+              << rep.ape_posyaw.stats.rmse << " m, max " << rep.ape_posyaw.stats.max << " m ("
+              << rep.ApePosYawPercent() << " %)\n";
+  } else {
+    std::cout << "APE (position+yaw-aligned): " << rep.ape_posyaw.error << "\n";
+  }
+  if (rep.gravity.ok) {
+    std::cout << ppf::FormatGravityLines(rep.gravity, opts.tilt_after);
   }
   std::cout << std::setprecision(0) << "wall time " << rep.wall_s << " s (simulator "
             << rep.sim_wall_s << " s)\n";

@@ -144,8 +144,16 @@ EnduranceReport RunEndurance(const EnduranceOptions& options, const Config& conf
         row.rss_mb = rss;
         EvalOptions eval;
         eval.align = Alignment::kSE3;
+        eval.tilt_after_s = options.tilt_after;
         const EvalResult ape = ComputeApe(gt, est, eval);
         row.ape_rmse = ape.ok ? ape.stats.rmse : -1.0;
+        eval.align = Alignment::kPosYaw;
+        const EvalResult ape_posyaw = ComputeApe(gt, est, eval);
+        row.ape_posyaw_rmse = ape_posyaw.ok ? ape_posyaw.stats.rmse : -1.0;
+        if (ape.gravity.ok) {
+          row.tilt_max_deg = ape.gravity.tilt.count > 0 ? ape.gravity.tilt.max : -1.0;
+          row.dz_m = ape.gravity.final_dz_m;
+        }
         row.wall_s = Since(t_start);
         row.scans = rep.scans;
         row.posed = rep.posed;
@@ -189,7 +197,11 @@ EnduranceReport RunEndurance(const EnduranceOptions& options, const Config& conf
 
   EvalOptions eval;
   eval.align = Alignment::kSE3;
+  eval.tilt_after_s = options.tilt_after;
   rep.ape = ComputeApe(gt, est, eval);
+  rep.gravity = rep.ape.gravity;
+  eval.align = Alignment::kPosYaw;
+  rep.ape_posyaw = ComputeApe(gt, est, eval);
   rep.path_length = PathLength(gt);
   rep.wall_s = Since(t_start);
   return rep;

@@ -78,6 +78,7 @@ class RecordListener : public fdds::DataReaderListener {
 struct TopicState {
   std::string type;  // ROS type once known
   bool reader_created = false;
+  bool creating = false;  // a reader is being created outside the recorder's lock
   uint64_t count = 0;
   fdds::TypeSupport type_support;
   std::unique_ptr<RecordListener> listener;
@@ -92,16 +93,19 @@ class Recorder : public fdds::DomainParticipantListener {
   }
 
   void Attach(fdds::DomainParticipant* participant, fdds::Subscriber* subscriber) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    participant_ = participant;
-    subscriber_ = subscriber;
-    // Topics whose type was given explicitly do not wait for discovery: reliable keep-all, which
-    // matches reliable writers (every output of ppf_node). Best-effort writers are matched once
-    // discovered (see on_publisher_discovery).
-    for (auto& [name, st] : topics_) {
-      auto f = forced_types_.find(name);
-      if (f != forced_types_.end()) CreateReaderLocked(name, f->second, true);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      participant_ = participant;
+      subscriber_ = subscriber;
+      // Topics whose type was given explicitly do not wait for discovery: reliable keep-all,
+      // which matches reliable writers (every output of ppf_node). Best-effort writers are
+      // matched once discovered (see on_publisher_discovery).
+      for (auto& [name, st] : topics_) {
+        auto f = forced_types_.find(name);
+        if (f != forced_types_.end()) pending_.push_back({name, f->second, true});
+      }
     }
+    CreatePending();
   }
 
   void on_publisher_discovery(fdds::DomainParticipant*,
@@ -119,7 +123,7 @@ class Recorder : public fdds::DomainParticipantListener {
       Log(Level::kWarn, ros_topic + ": writer with non-ROS type '" + dds_type + "' ignored");
       return;
     }
-    if (it->second.reader_created) {
+    if (it->second.reader_created || it->second.creating) {
       if (ros_type != it->second.type) {
         Log(Level::kWarn, ros_topic + ": writer of type " + ros_type + " ignored (recording " +
                               it->second.type + ")");
@@ -131,15 +135,60 @@ class Recorder : public fdds::DomainParticipantListener {
       Log(Level::kWarn,
           ros_topic + ": discovered type " + ros_type + " differs from the usual " + known->second);
     }
-    // Entities are not created inside a discovery callback (Fast DDS holds discovery locks
+    // Entities are not created inside a discovery callback (Fast DDS holds its discovery lock
     // here); the main loop creates them (CreatePending).
     pending_.push_back({ros_topic, ros_type, reliable});
   }
 
+  // Creates the readers discovery asked for. Lock order: Fast DDS calls on_publisher_discovery
+  // with its discovery (PDP) lock held and we then take mutex_; entity creation takes that same
+  // discovery lock. So mutex_ is never held across a Fast DDS entity call: the work is claimed
+  // under the lock, the entities are created without it, and the results are published under
+  // it again. (Holding it across create_datareader deadlocked against a writer being discovered
+  // at that moment.)
   void CreatePending() {
+    struct Job {
+      Pending request;
+      RecordListener* listener;
+      fdds::TypeSupport type_support;
+      fdds::DataReader* reader = nullptr;
+    };
+    std::vector<Job> jobs;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (participant_ == nullptr || subscriber_ == nullptr) return;
+      for (const Pending& p : pending_) {
+        TopicState& st = topics_[p.topic];
+        // `creating` keeps a writer discovered meanwhile from queueing the same topic again.
+        if (st.reader_created || st.creating) continue;
+        try {
+          // Before the reader exists, so the first sample always has its topic in the bag.
+          writer_->AddTopic(ppf::bag::TopicInfo{p.topic, p.type, "cdr", ""});
+        } catch (const std::exception& e) {
+          Log(Level::kError, e.what());
+          continue;
+        }
+        st.creating = true;
+        st.type = p.type;
+        st.listener = std::make_unique<RecordListener>(this, p.topic);
+        jobs.push_back({p, st.listener.get(), fdds::TypeSupport(), nullptr});
+      }
+      pending_.clear();
+    }
+    for (Job& job : jobs) job.reader = CreateReader(&job.request, job.listener, &job.type_support);
     std::lock_guard<std::mutex> lock(mutex_);
-    for (const auto& p : pending_) CreateReaderLocked(p.topic, p.type, p.reliable);
-    pending_.clear();
+    for (Job& job : jobs) {
+      TopicState& st = topics_[job.request.topic];
+      st.creating = false;
+      if (job.reader == nullptr) {
+        Log(Level::kError, "cannot create reader for " + job.request.topic);
+        continue;
+      }
+      st.reader_created = true;
+      st.type_support = job.type_support;
+      Log(Level::kInfo, "recording " + job.request.topic + " [" + job.request.type + "] " +
+                            (job.request.reliable ? "reliable" : "best effort"));
+    }
   }
 
   void Store(const std::string& topic, fdds::DataReader* reader) {
@@ -176,34 +225,24 @@ class Recorder : public fdds::DomainParticipantListener {
   }
 
  private:
-  void CreateReaderLocked(const std::string& ros_topic, const std::string& ros_type,
-                          bool reliable) {
-    TopicState& st = topics_[ros_topic];
-    if (st.reader_created) return;
-    const std::string dds_type = ppf::dds::RosTypeToDds(ros_type);
-    try {
-      writer_->AddTopic(ppf::bag::TopicInfo{ros_topic, ros_type, "cdr", ""});
-    } catch (const std::exception& e) {
-      Log(Level::kError, e.what());
-      return;
-    }
-    st.type = ros_type;
-    st.type_support = fdds::TypeSupport(new ppf::dds::RawPubSubType(dds_type));
-    st.type_support.register_type(participant_);
-    fdds::Topic* topic = participant_->create_topic(ppf::dds::RosTopicToDds(ros_topic), dds_type,
-                                                    fdds::TOPIC_QOS_DEFAULT);
-    st.listener = std::make_unique<RecordListener>(this, ros_topic);
+  struct Pending {
+    std::string topic, type;
+    bool reliable;
+  };
+
+  // Fast DDS calls only: must run without mutex_ (see CreatePending). participant_ and
+  // subscriber_ are set once in Attach, before discovery starts.
+  fdds::DataReader* CreateReader(const Pending* request, RecordListener* listener,
+                                 fdds::TypeSupport* type_support) {
+    const std::string dds_type = ppf::dds::RosTypeToDds(request->type);
+    *type_support = fdds::TypeSupport(new ppf::dds::RawPubSubType(dds_type));
+    type_support->register_type(participant_);
+    fdds::Topic* topic = participant_->create_topic(ppf::dds::RosTopicToDds(request->topic),
+                                                    dds_type, fdds::TOPIC_QOS_DEFAULT);
+    if (topic == nullptr) return nullptr;
     fdds::DataReaderQos qos = ppf::dds::KeepAllReaderQos();
-    if (!reliable) qos.reliability().kind = fdds::BEST_EFFORT_RELIABILITY_QOS;
-    fdds::DataReader* r =
-        topic ? subscriber_->create_datareader(topic, qos, st.listener.get()) : nullptr;
-    if (!r) {
-      Log(Level::kError, "cannot create reader for " + ros_topic);
-      return;
-    }
-    st.reader_created = true;
-    Log(Level::kInfo, "recording " + ros_topic + " [" + ros_type + "] " +
-                          (reliable ? "reliable" : "best effort"));
+    if (!request->reliable) qos.reliability().kind = fdds::BEST_EFFORT_RELIABILITY_QOS;
+    return subscriber_->create_datareader(topic, qos, listener);
   }
 
   std::mutex mutex_;
@@ -213,10 +252,6 @@ class Recorder : public fdds::DomainParticipantListener {
   fdds::DomainParticipant* participant_ = nullptr;
   fdds::Subscriber* subscriber_ = nullptr;
   bool closed_ = false;
-  struct Pending {
-    std::string topic, type;
-    bool reliable;
-  };
   std::vector<Pending> pending_;
 };
 

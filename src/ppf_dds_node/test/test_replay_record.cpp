@@ -241,6 +241,77 @@ TEST(ReplayRecordOptions, LoopUntilInterruptedAndExplicitTypes) {
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }
 
+// Issue 12: ppf_record held its own lock while creating readers, and Fast DDS calls the
+// recorder's discovery callback (which takes that lock) while holding the discovery lock that
+// reader creation needs: a writer discovered while readers were being created deadlocked the
+// recorder (nothing recorded, SIGINT ignored). Two replays of a bag with many topics, started
+// a moment apart, make the recorder create readers while more writers are being discovered;
+// each round must record everything and stop on SIGINT.
+TEST(ReplayRecordOptions, RecorderCreatingReadersWhileWritersAppearNeitherHangsNorLosesData) {
+  const std::string dir = ppf::test::TempDir("ppf_dds_record_race");
+  constexpr int kTopics = 30;
+  constexpr int kPerTopic = 3;
+  std::vector<std::string> names;
+  {
+    ppf::bag::WriterOptions o;
+    o.storage = ppf::bag::Storage::kMcap;
+    ppf::bag::Writer w(dir + "/in", o);
+    const int64_t t0 = 1700000000LL * 1000000000LL;
+    for (int k = 0; k < kTopics; ++k) {
+      names.push_back("/race/t" + std::to_string(k));
+      w.AddTopic({names.back(), "std_msgs/msg/String", "cdr", ""});
+    }
+    for (int i = 0; i < kPerTopic; ++i) {
+      for (int k = 0; k < kTopics; ++k) {
+        w.Write(names[k], t0 + i * 10000000LL + k,
+                StringPayload("m" + std::to_string(i) + " of " + names[k]));
+      }
+    }
+    w.Close();
+  }
+  constexpr int kRounds = 4;
+  for (int round = 0; round < kRounds; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    const std::string domain = std::to_string(ppf::test::TestDomainId(40 + round));
+    const std::vector<std::string> dds = {"--domain",           domain,      "--profiles",
+                                          ppf::test::kProfiles, "--profile", ppf::test::kProfile};
+    const std::string out = dir + "/out" + std::to_string(round);
+    std::vector<std::string> rec = {PPF_RECORD_EXE, "--out", out, "--storage", "mcap", "--topics"};
+    rec.insert(rec.end(), names.begin(), names.end());
+    rec.insert(rec.end(), dds.begin(), dds.end());
+    ChildProcess record;
+    ChildProcess replays[2];
+    ASSERT_TRUE(record.Start(rec, {}, out + ".record.log"));
+    std::string line;
+    ASSERT_TRUE(record.WaitForLine("PPF_RECORD_READY", &line, 20s));
+    for (int r = 0; r < 2; ++r) {
+      std::vector<std::string> play = {PPF_REPLAY_EXE, "--bag",    dir + "/in", "--wait-matched",
+                                       "10",           "--linger", "0.2"};
+      play.insert(play.end(), dds.begin(), dds.end());
+      ASSERT_TRUE(replays[r].Start(play, {}, out + ".replay" + std::to_string(r) + ".log"));
+      // The second replay's writers are discovered while the recorder creates readers for the
+      // first one's.
+      std::this_thread::sleep_for(std::chrono::milliseconds(20 + 15 * round));
+    }
+    for (auto& replay : replays) {
+      ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &line, 30s));
+      EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
+    }
+    record.Signal(SIGINT);
+    std::string done;
+    ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &done, 10s))
+        << "ppf_record did not stop on SIGINT (deadlocked?), see " << out << ".record.log";
+    EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
+    // Reliable writers that waited for every reader and for its acknowledgements: each topic
+    // holds both replays' messages.
+    for (const auto& n : names) {
+      EXPECT_NE(done.find(" " + n + "=" + std::to_string(2 * kPerTopic)), std::string::npos)
+          << n << " in: " << done;
+    }
+  }
+  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
+}
+
 TEST(ReplayRecordOptions, BadArgumentsAreRejected) {
   ChildProcess p;
   ASSERT_TRUE(p.Start({PPF_REPLAY_EXE, "--bag", "/nonexistent/bag"}));

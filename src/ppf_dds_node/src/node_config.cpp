@@ -69,10 +69,30 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
     r.error = "node config must be a YAML map";
     return r;
   }
-  WarnUnknown(
-      root, "",
-      {"dds", "topics", "frames", "qos", "outputs", "queues", "core", "trajectory", "diagnostics"},
-      &r);
+  const std::vector<std::string> sections = {
+      "dds", "topics", "frames", "qos", "outputs", "queues", "core", "trajectory", "diagnostics"};
+  // A file in which no key is ours is the wrong file (typically a core preset such as
+  // config/vlp16.yaml): starting anyway would run on defaults, Fast DDS's transport included,
+  // with nothing but a list of warnings to show for it.
+  if (root.size() > 0) {
+    std::string keys;
+    bool any_known = false;
+    for (const auto& kv : root) {
+      const std::string key = kv.first.as<std::string>();
+      for (const auto& k : sections) any_known = any_known || k == key;
+      if (keys.size() < 60) keys += (keys.empty() ? "" : ", ") + key;
+    }
+    if (!any_known) {
+      r.ok = false;
+      r.error =
+          "not a ppf_node config: none of its keys (" + keys +
+          ") is a node key (dds, topics, frames, qos, outputs, queues, core, trajectory, "
+          "diagnostics). A core preset (config/<lidar>.yaml) goes in core.config_file of a node "
+          "config, e.g. config/node_hdl32.yaml";
+      return r;
+    }
+  }
+  WarnUnknown(root, "", sections, &r);
   auto section = [&](const char* name, const std::vector<std::string>& known) {
     YAML::Node s = root[name];
     if (s && !s.IsMap()) {

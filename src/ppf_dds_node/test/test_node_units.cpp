@@ -88,6 +88,29 @@ TEST(NodeConfig, ShippedPresetsLoadWithoutWarnings) {
   }
 }
 
+// A core preset passed as the node config has no node key at all: every key would only be
+// warned about and the node would start on defaults (Fast DDS transport included).
+TEST(NodeConfig, FileWithNoNodeKeyIsRefusedNamingTheMistake) {
+  for (const char* f : {"vlp16.yaml", "hdl32.yaml", "hdl64.yaml"}) {
+    NodeConfig c;
+    const auto r = LoadNodeConfig(std::string(PPF_CONFIG_DIR) + "/" + f, &c);
+    EXPECT_FALSE(r.ok) << f;
+    EXPECT_NE(r.error.find("not a ppf_node config"), std::string::npos) << f << ": " << r.error;
+    EXPECT_NE(r.error.find("core.config_file"), std::string::npos) << f << ": " << r.error;
+  }
+  NodeConfig c;
+  auto r = LoadNodeConfigString("topic: {points: /x}\nmode: ppf\n", &c);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("topic, mode"), std::string::npos) << r.error;
+  // One known key is enough to be a node config; the rest stays a warning.
+  r = LoadNodeConfigString("mode: ppf\ncore: {mode: ppf}\n", &c);
+  EXPECT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(r.warnings.size(), 1u);
+  // Empty files and empty maps are all-defaults configs, not wrong files.
+  EXPECT_TRUE(LoadNodeConfigString("{}\n", &c).ok);
+  EXPECT_TRUE(LoadNodeConfigString("# nothing\n", &c).ok);
+}
+
 TEST(NodeConfig, CalibrationFileIsLayeredAndResolvedNextToTheConfig) {
   const std::string dir = ::testing::TempDir() + "/ppf_node_cfg_calib";
   std::filesystem::create_directories(dir);

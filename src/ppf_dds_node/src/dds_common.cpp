@@ -1,5 +1,8 @@
 #include "ppf_dds_node/dds_common.hpp"
 
+#include <unistd.h>
+
+#include <cstdlib>
 #include <fstream>
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
@@ -43,6 +46,57 @@ std::string DdsTypeToRos(const std::string& dds_type) {
   if (name.size() < 2 || name.back() != '_' || name.find("::") != std::string::npos) return "";
   name.pop_back();
   return dds_type.substr(0, a) + "/" + dds_type.substr(a + 2, b - a - 2) + "/" + name;
+}
+
+namespace {
+
+bool Readable(const std::string& path) { return std::ifstream(path).good(); }
+
+std::string ExeDir() {
+  char self[4096];
+  const ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
+  if (n <= 0) return "";
+  self[n] = '\0';
+  const std::string path(self);
+  return path.substr(0, path.rfind('/'));
+}
+
+}  // namespace
+
+std::string ProjectShmUdpProfile() {
+  const std::string installed = ExeDir() + "/../share/ppf_dds_node/config/dds/shm_udp.xml";
+  if (Readable(installed)) return installed;
+#ifdef PPF_SOURCE_DDS_CONFIG_DIR
+  // Build-tree binaries (tests, `colcon build` without install) have no share/ next to them.
+  const std::string source = PPF_SOURCE_DDS_CONFIG_DIR "/shm_udp.xml";
+  if (Readable(source)) return source;
+#endif
+  return "";
+}
+
+std::string ChooseToolTransport(bool fastdds_defaults, ParticipantOptions* options) {
+  if (!options->profiles_file.empty()) return "DDS profiles: " + options->profiles_file;
+  const char* env = std::getenv("FASTRTPS_DEFAULT_PROFILES_FILE");
+  if (env != nullptr && env[0] != '\0') {
+    return std::string("DDS profiles: ") + env + " (FASTRTPS_DEFAULT_PROFILES_FILE)";
+  }
+  if (Readable("DEFAULT_FASTRTPS_PROFILES.xml")) {
+    return "DDS profiles: ./DEFAULT_FASTRTPS_PROFILES.xml (loaded by Fast DDS)";
+  }
+  if (fastdds_defaults) {
+    return "DDS profiles: none, Fast DDS defaults (--fastdds-defaults): clouds over ~512 KB may "
+           "be lost between processes";
+  }
+  const std::string project = ProjectShmUdpProfile();
+  if (project.empty()) {
+    return "DDS profiles: project shm_udp.xml not found, Fast DDS defaults: clouds over ~512 KB "
+           "may be lost between processes (give --profiles)";
+  }
+  options->profiles_file = project;
+  if (options->profile_name.empty()) options->profile_name = kProjectShmUdpProfileName;
+  return "DDS profiles: " + project +
+         " (project default; --profiles, "
+         "FASTRTPS_DEFAULT_PROFILES_FILE or --fastdds-defaults to change)";
 }
 
 fdds::DomainParticipant* CreateParticipant(const ParticipantOptions& options, std::string* error) {

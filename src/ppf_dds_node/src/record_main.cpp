@@ -38,7 +38,11 @@ void Usage() {
                "usage: ppf_record --topics T ... --out DIR [--storage mcap|sqlite3]\n"
                "                  [--types T:=pkg/msg/Type ...] [--duration SEC]\n"
                "                  [--domain ID] [--profiles XML] [--profile NAME]\n"
-               "  records until SIGINT/SIGTERM (or --duration); DIR must not exist\n");
+               "                  [--fastdds-defaults]\n"
+               "  records until SIGINT/SIGTERM (or --duration); DIR must not exist\n"
+               "  --profiles XML      Fast DDS XML (default: FASTRTPS_DEFAULT_PROFILES_FILE if\n"
+               "                      set, else the project's shm_udp.xml)\n"
+               "  --fastdds-defaults  no XML: Fast DDS's built-in transports\n");
 }
 
 // Types of the topics ppf_node speaks, used to check what discovery reports.
@@ -320,6 +324,7 @@ int main(int argc, char** argv) {
   Recorder recorder(writer.get(), topics, types);
   ppf::dds::ParticipantOptions popt{dds.domain_id, dds.profiles_file, dds.profile_name,
                                     "ppf_record"};
+  Log(Level::kInfo, ppf::dds::ChooseToolTransport(dds.fastdds_defaults, &popt));
   // The participant listener must be attached before discovery starts: create the participant
   // disabled, attach, then enable.
   std::string error;

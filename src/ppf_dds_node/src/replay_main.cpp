@@ -35,8 +35,8 @@ void Usage() {
       stderr,
       "usage: ppf_replay --bag DIR [--rate R] [--loop] [--start SEC] [--topics T ...]\n"
       "                  [--remap FROM:=TO ...] [--best-effort] [--depth N]\n"
-      "                  [--wait-matched SEC] [--linger SEC] [--domain ID] [--profiles XML] "
-      "[--profile NAME]\n"
+      "                  [--wait-matched SEC] [--linger SEC] [--domain ID]\n"
+      "                  [--profiles XML] [--profile NAME] [--fastdds-defaults]\n"
       "  --rate R          playback speed factor (default 1)\n"
       "  --loop            start over at the end (until SIGINT)\n"
       "  --start SEC       skip the first SEC seconds of the bag\n"
@@ -47,7 +47,10 @@ void Usage() {
       "  --depth N         writer history depth per topic (default 50)\n"
       "  --wait-matched S  before playing, wait up to S s until every writer has a reader\n"
       "  --linger S        keep the writers S s after the last message (default 1) so\n"
-      "                    best-effort readers take the tail before the writers leave\n");
+      "                    best-effort readers take the tail before the writers leave\n"
+      "  --profiles XML    Fast DDS XML (default: FASTRTPS_DEFAULT_PROFILES_FILE if set, else\n"
+      "                    the project's shm_udp.xml, which carries multi-MB clouds)\n"
+      "  --fastdds-defaults  no XML: Fast DDS's built-in transports\n");
 }
 
 class MatchCounter : public fdds::DataWriterListener {
@@ -128,6 +131,7 @@ int main(int argc, char** argv) {
 
   ppf::dds::ParticipantOptions popt{dds.domain_id, dds.profiles_file, dds.profile_name,
                                     "ppf_replay"};
+  Log(Level::kInfo, ppf::dds::ChooseToolTransport(dds.fastdds_defaults, &popt));
   std::string error;
   fdds::DomainParticipant* participant = ppf::dds::CreateParticipant(popt, &error);
   if (!participant) {

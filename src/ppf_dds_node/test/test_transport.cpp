@@ -6,6 +6,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <sstream>
 #include <thread>
 
@@ -165,6 +166,55 @@ TEST(Transport, UnknownProfileIsReportedNotIgnored) {
   opt.profiles_file = "/nonexistent/profile.xml";
   EXPECT_EQ(ppf::dds::CreateParticipant(opt, &error), nullptr);
   EXPECT_NE(error.find("cannot read"), std::string::npos) << error;
+}
+
+// ppf_replay / ppf_record without a transport choice must not fall back to Fast DDS's defaults
+// (they lose most multi-MB clouds); any explicit choice still wins.
+TEST(Transport, ToolsDefaultToTheProjectShmUdpProfileUnlessToldOtherwise) {
+  const char* saved_env = std::getenv("FASTRTPS_DEFAULT_PROFILES_FILE");
+  const std::string saved = saved_env ? saved_env : "";
+  unsetenv("FASTRTPS_DEFAULT_PROFILES_FILE");
+
+  ppf::dds::ParticipantOptions none;
+  std::string note = ppf::dds::ChooseToolTransport(false, &none);
+  ASSERT_FALSE(ppf::dds::ProjectShmUdpProfile().empty());
+  EXPECT_EQ(none.profiles_file, ppf::dds::ProjectShmUdpProfile());
+  EXPECT_EQ(none.profiles_file.substr(none.profiles_file.size() - 12), "/shm_udp.xml");
+  EXPECT_EQ(none.profile_name, "ppf_shm_udp");
+  EXPECT_NE(note.find("project default"), std::string::npos) << note;
+  std::string error;
+  none.domain_id = ppf::test::TestDomainId(5);
+  fdds::DomainParticipant* p = ppf::dds::CreateParticipant(none, &error);
+  ASSERT_NE(p, nullptr) << error;
+  fdds::DomainParticipantQos qos;
+  p->get_qos(qos);
+  EXPECT_FALSE(qos.transport().use_builtin_transports);
+  EXPECT_EQ(qos.transport().user_transports.size(), 2u);  // ppf_shm + ppf_udp
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(p);
+
+  ppf::dds::ParticipantOptions explicit_file;
+  explicit_file.profiles_file = PPF_DDS_CONFIG_DIR "/udp_only.xml";
+  ppf::dds::ChooseToolTransport(false, &explicit_file);
+  EXPECT_EQ(explicit_file.profiles_file, PPF_DDS_CONFIG_DIR "/udp_only.xml");
+  EXPECT_EQ(explicit_file.profile_name, "");
+
+  ppf::dds::ParticipantOptions defaults;
+  note = ppf::dds::ChooseToolTransport(true, &defaults);
+  EXPECT_EQ(defaults.profiles_file, "");
+  EXPECT_NE(note.find("Fast DDS defaults"), std::string::npos) << note;
+
+  setenv("FASTRTPS_DEFAULT_PROFILES_FILE", PPF_DDS_CONFIG_DIR "/udp_only.xml", 1);
+  ppf::dds::ParticipantOptions from_env;
+  note = ppf::dds::ChooseToolTransport(false, &from_env);
+  EXPECT_EQ(from_env.profiles_file, "");  // Fast DDS loads the environment's file itself
+  EXPECT_EQ(from_env.profile_name, "");
+  EXPECT_NE(note.find("FASTRTPS_DEFAULT_PROFILES_FILE"), std::string::npos) << note;
+
+  if (saved_env) {
+    setenv("FASTRTPS_DEFAULT_PROFILES_FILE", saved.c_str(), 1);
+  } else {
+    unsetenv("FASTRTPS_DEFAULT_PROFILES_FILE");
+  }
 }
 
 TEST(Transport, RosNameMangling) {

@@ -15,11 +15,18 @@ struct DdsCliOptions {
   int domain_id = 0;
   std::string profiles_file;
   std::string profile_name;
+  // --fastdds-defaults: no XML at all (otherwise the project's SHM+UDP profile is the default,
+  // see ChooseToolTransport).
+  bool fastdds_defaults = false;
 };
 
-// Consumes --domain/--profiles/--profile at argv[*i]; returns true if it did.
+// Consumes --domain/--profiles/--profile/--fastdds-defaults at argv[*i]; returns true if it did.
 inline bool ParseDdsOption(int argc, char** argv, int* i, DdsCliOptions* o) {
   const std::string a = argv[*i];
+  if (a == "--fastdds-defaults") {
+    o->fastdds_defaults = true;
+    return true;
+  }
   if (*i + 1 >= argc) return false;
   if (a == "--domain") {
     o->domain_id = std::atoi(argv[++*i]);

@@ -32,6 +32,21 @@ struct ParticipantOptions {
   std::string participant_name;
 };
 
+// The transport a tool (ppf_replay, ppf_record) uses when the user did not choose one. Fast DDS's
+// own defaults lose most multi-MB clouds between processes (512 KB shared-memory segment), so
+// without an explicit choice the tools load the project's SHM+UDP profile (shm_udp.xml), as the
+// node presets do. An explicit choice wins: `options->profiles_file` already set (--profiles),
+// FASTRTPS_DEFAULT_PROFILES_FILE in the environment or DEFAULT_FASTRTPS_PROFILES.xml in the
+// working directory (both loaded by Fast DDS itself), or `fastdds_defaults` (--fastdds-defaults).
+// Fills options->profiles_file / profile_name accordingly and returns one line for the log.
+std::string ChooseToolTransport(bool fastdds_defaults, ParticipantOptions* options);
+
+// Where the project's shm_udp.xml is: installed next to the executable
+// (<prefix>/share/ppf_dds_node/config/dds), else in the source tree the tools were built from.
+// Empty if neither exists.
+std::string ProjectShmUdpProfile();
+inline constexpr const char* kProjectShmUdpProfileName = "ppf_shm_udp";
+
 // Loads the XML (if any) and creates the participant. Returns nullptr with `error` set on failure
 // (unreadable XML, unknown profile, domain id out of range).
 fdds::DomainParticipant* CreateParticipant(const ParticipantOptions& options, std::string* error);

@@ -5,7 +5,9 @@
 
 #include <unistd.h>
 
+#include <atomic>
 #include <map>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
@@ -15,11 +17,13 @@
 #include "ppf_bag/bag.hpp"
 #include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_dds_node/raw_type.hpp"
 #include "sensor_msgs/msg/Imu.h"
 #include "sensor_msgs/msg/PointCloud2.h"
 
 using namespace std::chrono_literals;
 using ppf::test::ChildProcess;
+namespace fdds = eprosima::fastdds::dds;
 
 namespace {
 
@@ -242,73 +246,114 @@ TEST(ReplayRecordOptions, LoopUntilInterruptedAndExplicitTypes) {
 }
 
 // Issue 12: ppf_record held its own lock while creating readers, and Fast DDS calls the
-// recorder's discovery callback (which takes that lock) while holding the discovery lock that
+// recorder's discovery callback (which takes that lock) with its discovery lock held, the lock
 // reader creation needs: a writer discovered while readers were being created deadlocked the
-// recorder (nothing recorded, SIGINT ignored). Two replays of a bag with many topics, started
-// a moment apart, make the recorder create readers while more writers are being discovered;
-// each round must record everything and stop on SIGINT.
+// recorder (nothing recorded, SIGINT ignored). Here the recorder joins a participant with many
+// writers (one batch of readers to create) while this process keeps creating new writers, so
+// discovery callbacks arrive throughout that batch; every round must record every message and
+// stop on SIGINT.
 TEST(ReplayRecordOptions, RecorderCreatingReadersWhileWritersAppearNeitherHangsNorLosesData) {
-  const std::string dir = ppf::test::TempDir("ppf_dds_record_race");
   constexpr int kTopics = 30;
+  constexpr int kChurnTopics = 8;
   constexpr int kPerTopic = 3;
+  constexpr int kRounds = 3;
+  const std::string dir = ppf::test::TempDir("ppf_dds_record_race");
+  const int domain = ppf::test::TestDomainId(40);
+  ppf::dds::ParticipantOptions opt{domain, ppf::test::kProfiles, ppf::test::kProfile, "race_pub"};
+  std::string error;
+  fdds::DomainParticipant* participant = ppf::dds::CreateParticipant(opt, &error);
+  ASSERT_NE(participant, nullptr) << error;
+  fdds::TypeSupport type(new ppf::dds::RawPubSubType("std_msgs::msg::dds_::String_"));
+  type.register_type(participant);
+  fdds::Publisher* publisher = participant->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
+  // Reliable keep-all; heartbeats every 50 ms so each round's acknowledgements come back
+  // promptly (the default period is 3 s).
+  fdds::DataWriterQos wqos = ppf::dds::KeepAllWriterQos();
+  wqos.reliable_writer_qos().times.heartbeatPeriod = eprosima::fastrtps::Duration_t(0, 50000000);
   std::vector<std::string> names;
-  {
-    ppf::bag::WriterOptions o;
-    o.storage = ppf::bag::Storage::kMcap;
-    ppf::bag::Writer w(dir + "/in", o);
-    const int64_t t0 = 1700000000LL * 1000000000LL;
-    for (int k = 0; k < kTopics; ++k) {
-      names.push_back("/race/t" + std::to_string(k));
-      w.AddTopic({names.back(), "std_msgs/msg/String", "cdr", ""});
-    }
-    for (int i = 0; i < kPerTopic; ++i) {
-      for (int k = 0; k < kTopics; ++k) {
-        w.Write(names[k], t0 + i * 10000000LL + k,
-                StringPayload("m" + std::to_string(i) + " of " + names[k]));
-      }
-    }
-    w.Close();
+  std::vector<fdds::DataWriter*> writers;
+  std::vector<std::unique_ptr<ppf::test::WriterMatches>> matches;
+  for (int k = 0; k < kTopics; ++k) {
+    names.push_back("/race/t" + std::to_string(k));
+    fdds::Topic* topic = participant->create_topic(ppf::dds::RosTopicToDds(names.back()),
+                                                   type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+    matches.push_back(std::make_unique<ppf::test::WriterMatches>());
+    writers.push_back(topic ? publisher->create_datawriter(topic, wqos, matches.back().get())
+                            : nullptr);
+    ASSERT_NE(writers.back(), nullptr);
   }
-  constexpr int kRounds = 4;
+  std::vector<fdds::Topic*> churn_topics;
+  for (int k = 0; k < kChurnTopics; ++k) {
+    churn_topics.push_back(participant->create_topic(
+        "rt/race/churn" + std::to_string(k), type.get_type_name(), fdds::TOPIC_QOS_DEFAULT));
+    ASSERT_NE(churn_topics.back(), nullptr);
+  }
+
   for (int round = 0; round < kRounds; ++round) {
     SCOPED_TRACE("round " + std::to_string(round));
-    const std::string domain = std::to_string(ppf::test::TestDomainId(40 + round));
-    const std::vector<std::string> dds = {"--domain",           domain,      "--profiles",
-                                          ppf::test::kProfiles, "--profile", ppf::test::kProfile};
+    // New writers (each one a discovery callback in the recorder) every few milliseconds while
+    // the recorder starts and creates its readers.
+    std::atomic<bool> churn{true};
+    std::thread churner([&] {
+      std::vector<fdds::DataWriter*> alive(kChurnTopics, nullptr);
+      for (int i = 0; churn; ++i) {
+        const int k = i % kChurnTopics;
+        if (alive[k]) publisher->delete_datawriter(alive[k]);
+        alive[k] = publisher->create_datawriter(churn_topics[k], fdds::DATAWRITER_QOS_DEFAULT);
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      }
+      for (fdds::DataWriter* w : alive) {
+        if (w) publisher->delete_datawriter(w);
+      }
+    });
     const std::string out = dir + "/out" + std::to_string(round);
     std::vector<std::string> rec = {PPF_RECORD_EXE, "--out", out, "--storage", "mcap", "--topics"};
     rec.insert(rec.end(), names.begin(), names.end());
-    rec.insert(rec.end(), dds.begin(), dds.end());
+    for (const std::string& a : {std::string("--domain"), std::to_string(domain),
+                                 std::string("--profiles"), std::string(ppf::test::kProfiles),
+                                 std::string("--profile"), std::string(ppf::test::kProfile)}) {
+      rec.push_back(a);
+    }
     ChildProcess record;
-    ChildProcess replays[2];
     ASSERT_TRUE(record.Start(rec, {}, out + ".record.log"));
     std::string line;
-    ASSERT_TRUE(record.WaitForLine("PPF_RECORD_READY", &line, 20s));
-    for (int r = 0; r < 2; ++r) {
-      std::vector<std::string> play = {PPF_REPLAY_EXE, "--bag",    dir + "/in", "--wait-matched",
-                                       "10",           "--linger", "0.2"};
-      play.insert(play.end(), dds.begin(), dds.end());
-      ASSERT_TRUE(replays[r].Start(play, {}, out + ".replay" + std::to_string(r) + ".log"));
-      // The second replay's writers are discovered while the recorder creates readers for the
-      // first one's.
-      std::this_thread::sleep_for(std::chrono::milliseconds(20 + 15 * round));
+    EXPECT_TRUE(record.WaitForLine("PPF_RECORD_READY", &line, 20s));
+    const bool all_matched = ppf::test::WaitUntil(
+        [&] {
+          for (const auto& m : matches) {
+            if (m->matched < 1) return false;
+          }
+          return true;
+        },
+        10s);
+    churn = false;
+    churner.join();
+    EXPECT_TRUE(all_matched) << "the recorder never subscribed to every topic (deadlocked?), see "
+                             << out << ".record.log";
+    // Our writers matched its readers; give its readers a moment to match our writers too.
+    std::this_thread::sleep_for(300ms);
+    for (int i = 0; i < kPerTopic; ++i) {
+      for (int k = 0; k < kTopics; ++k) {
+        ppf::dds::RawMessage raw;
+        raw.payload = StringPayload("m" + std::to_string(i) + " of " + names[k]);
+        EXPECT_TRUE(writers[k]->write(&raw));
+      }
     }
-    for (auto& replay : replays) {
-      ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &line, 30s));
-      EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
-    }
+    for (fdds::DataWriter* w : writers) w->wait_for_acknowledgments({5, 0});
     record.Signal(SIGINT);
     std::string done;
     ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &done, 10s))
         << "ppf_record did not stop on SIGINT (deadlocked?), see " << out << ".record.log";
     EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
-    // Reliable writers that waited for every reader and for its acknowledgements: each topic
-    // holds both replays' messages.
+    // Reliable keep-all on both sides, acknowledged: every message of every topic.
     for (const auto& n : names) {
-      EXPECT_NE(done.find(" " + n + "=" + std::to_string(2 * kPerTopic)), std::string::npos)
+      EXPECT_NE(done.find(" " + n + "=" + std::to_string(kPerTopic)), std::string::npos)
           << n << " in: " << done;
     }
+    if (HasFailure()) break;
   }
+  participant->delete_contained_entities();
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }
 

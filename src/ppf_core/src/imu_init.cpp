@@ -62,6 +62,25 @@ ImuInitializer::State ImuInitializer::Add(const ImuSample& sample) {
     return State::kRestarted;
   }
 
+  const double g_expected = options_.gravity > 0.0 ? options_.gravity : 9.80665;
+  const bool turning = gyr_mean.norm() > options_.max_gyro_bias;
+  const bool accelerating = std::abs(g_norm - g_expected) > options_.max_gravity_error;
+  if (turning || accelerating) {
+    std::string why;
+    if (turning) {
+      why = "gyro mean " + std::to_string(gyr_mean.norm()) + " rad/s > max_gyro_bias " +
+            std::to_string(options_.max_gyro_bias);
+    }
+    if (accelerating) {
+      why += std::string(turning ? ", " : "") + "|a| " + std::to_string(g_norm) +
+             " m/s^2 differs from gravity " + std::to_string(g_expected) + " by more than " +
+             std::to_string(options_.max_gravity_error);
+    }
+    reason_ = restart_reason_ = "steady motion during IMU initialization (" + why + "): restarting";
+    window_.clear();
+    return State::kRestarted;
+  }
+
   acc_scale_ = scale;
   gyro_bias_ = gyr_mean;
   const double g = options_.gravity > 0.0 ? options_.gravity : g_norm;

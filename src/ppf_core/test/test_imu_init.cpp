@@ -102,5 +102,55 @@ TEST(ImuInit, WorksAtFiftyHertz) {
   EXPECT_TRUE(done);
 }
 
+// A car in a steady turn (6 m/s at 0.17 rad/s, a 35 m radius) shows no spread at all: the gyro
+// reads the turn rate plus bias, the accelerometer gravity plus the centripetal 1 m/s^2, both
+// constant. Taking that for rest made the turn rate a "gyro bias" and tilted the world by 6 deg.
+std::vector<ImuSample> SteadyMotion(const Eigen::Vector3d& gyro, const Eigen::Vector3d& acc_body) {
+  std::vector<ImuSample> out;
+  for (int i = 0; i <= 300; ++i) {
+    ImuSample s;
+    s.stamp_s = 50.0 + i / 200.0;
+    s.angular_velocity = gyro;
+    s.linear_acceleration = acc_body - test::kGravity;  // body level: R = I
+    out.push_back(s);
+  }
+  return out;
+}
+
+ImuInitializer::State Feed(ImuInitializer* init, const std::vector<ImuSample>& samples) {
+  ImuInitializer::State last = ImuInitializer::State::kCollecting;
+  for (const ImuSample& s : samples) {
+    last = init->Add(s);
+    if (last != ImuInitializer::State::kCollecting) return last;
+  }
+  return last;
+}
+
+TEST(ImuInit, SteadyTurnIsNotRest) {
+  ImuInitializer init;
+  const double v = 6.0, w = 0.17;
+  EXPECT_EQ(Feed(&init, SteadyMotion(Eigen::Vector3d(0, 0, w), Eigen::Vector3d(0, v * w, 0))),
+            ImuInitializer::State::kRestarted);
+  EXPECT_FALSE(init.done());
+  EXPECT_NE(init.reason().find("steady motion during IMU initialization (gyro mean 0.17"),
+            std::string::npos)
+      << init.reason();
+}
+
+TEST(ImuInit, SteadyAccelerationIsNotRest) {
+  ImuInitializer init;  // 3 m/s^2 straight ahead: |a| = 10.26 m/s^2
+  EXPECT_EQ(Feed(&init, SteadyMotion(Eigen::Vector3d::Zero(), Eigen::Vector3d(3.0, 0, 0))),
+            ImuInitializer::State::kRestarted);
+  EXPECT_NE(init.reason().find("differs from gravity 9.806650 by more than 0.300000"), std::string::npos)
+      << init.reason();
+  // Rest afterwards still initializes, with a plausible bias and the stated local gravity.
+  ImuInitOptions o;
+  o.gravity = 9.81;
+  ImuInitializer at_rest(o);
+  EXPECT_EQ(Feed(&at_rest, SteadyMotion(Eigen::Vector3d(0.02, -0.03, 0.01), Eigen::Vector3d::Zero())),
+            ImuInitializer::State::kDone);
+  EXPECT_LT((at_rest.gyro_bias() - Eigen::Vector3d(0.02, -0.03, 0.01)).norm(), 1e-12);
+}
+
 }  // namespace
 }  // namespace ppf

@@ -5,6 +5,9 @@
 // collecting, the spread of the accelerometer norm and of the gyro is watched: if the robot moves
 // (std above max_acc_std / max_gyro_std), the window is discarded and collection restarts; the
 // facade then reports Status::kInitializing with the reason "motion during IMU initialization".
+// A window without spread is refused as well when its gyro mean exceeds max_gyro_bias (a steady
+// turn) or its accelerometer norm is off gravity by more than max_gravity_error (a steady
+// acceleration): reason "steady motion during IMU initialization".
 //
 // Results: gyro bias = mean gyro; gravity magnitude = mean accelerometer norm (times acc_scale);
 // the accelerometer unit is detected: a mean norm in [0.5, 1.5] means the driver reports in g and
@@ -30,6 +33,12 @@ struct ImuInitOptions {
   double max_gyro_std = 0.05; // rad/s; above: "moving", restart
   double acc_scale = 0.0;     // multiply raw accelerometer readings; 0 = detect (1 or 9.80665)
   double gravity = 0.0;       // gravity magnitude m/s^2; 0 = use the measured norm
+  // A steady motion has no spread and still is not rest: a constant turn shows as a gyro mean far
+  // above any plausible bias (taking it for one bends every later heading), and an acceleration
+  // or the centripetal part of a fast turn as an accelerometer norm off gravity (taking it for
+  // gravity tilts the world). Checked against `gravity` (or 9.80665 if that is 0).
+  double max_gyro_bias = 0.05;      // rad/s (~3 deg/s: above MEMS turn-on biases)
+  double max_gravity_error = 0.3;   // m/s^2 between the mean accelerometer norm and gravity
 };
 
 class ImuInitializer {

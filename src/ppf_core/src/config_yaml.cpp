@@ -211,12 +211,15 @@ void Apply(const YAML::Node& root, Config* c, ConfigLoadReport* report) {
                      {"init_min_samples", Int(&c->init.min_samples)},
                      {"init_max_acc_std", Num(&c->init.max_acc_std)},
                      {"init_max_gyro_std", Num(&c->init.max_gyro_std)},
+                     {"init_max_gyro_bias", Num(&c->init.max_gyro_bias)},
+                     {"init_max_gravity_error", Num(&c->init.max_gravity_error)},
                      {"acc_scale", Num(&c->init.acc_scale)},
                      {"gravity", Num(&c->init.gravity)},
                      {"gyro_noise", Num(&c->noise.gyro)},
                      {"acc_noise", Num(&c->noise.acc)},
                      {"gyro_bias_noise", Num(&c->noise.gyro_bias)},
                      {"acc_bias_noise", Num(&c->noise.acc_bias)},
+                     {"gravity_dir_noise", Num(&c->noise.gravity_dir)},
                      {"max_gap", Num(&c->max_imu_gap_s)}};
   const Table iekf = {{"max_iterations", Int(&c->iekf.max_iterations)},
                       {"convergence_rot", Num(&c->iekf.convergence_rot_rad)},
@@ -229,6 +232,7 @@ void Apply(const YAML::Node& root, Config* c, ConfigLoadReport* report) {
   const Table knn = {{"k", Int(&c->knn.k)},
                      {"max_neighbor_distance", Num(&c->knn.max_neighbor_distance)},
                      {"plane_threshold", Num(&c->knn.plane_threshold)},
+                     {"min_plane_spread", Num(&c->knn.min_plane_spread)},
                      {"max_residual", Num(&c->knn.max_residual)}};
 
   const Table top = {

@@ -11,7 +11,7 @@
 namespace ppf {
 namespace {
 
-using Vec18 = Eigen::Matrix<double, kStateDim, 1>;
+using StateVec = Eigen::Matrix<double, kStateDim, 1>;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
@@ -20,24 +20,24 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
 }
 
 // x (-) prior in the error-state coordinates of imu_propagation.hpp.
-Vec18 BoxMinus(const NavState& x, const NavState& prior) {
-  Vec18 d;
+StateVec BoxMinus(const NavState& x, const NavState& prior) {
+  StateVec d;
   d.segment<3>(kRot) = SO3Log(prior.R_world_imu.transpose() * x.R_world_imu);
   d.segment<3>(kPos) = x.p_world_imu - prior.p_world_imu;
   d.segment<3>(kVel) = x.v_world - prior.v_world;
   d.segment<3>(kBg) = x.gyro_bias - prior.gyro_bias;
   d.segment<3>(kBa) = x.acc_bias - prior.acc_bias;
-  d.segment<3>(kGrav) = x.gravity_world - prior.gravity_world;
+  d.segment<2>(kGrav) = S2BoxMinus(x.gravity_world, prior.gravity_world);
   return d;
 }
 
-void BoxPlus(const Vec18& d, NavState* x) {
+void BoxPlus(const StateVec& d, NavState* x) {
   x->R_world_imu = NormalizeRotation(x->R_world_imu * SO3Exp(d.segment<3>(kRot)));
   x->p_world_imu += d.segment<3>(kPos);
   x->v_world += d.segment<3>(kVel);
   x->gyro_bias += d.segment<3>(kBg);
   x->acc_bias += d.segment<3>(kBa);
-  x->gravity_world += d.segment<3>(kGrav);
+  x->gravity_world = S2BoxPlus(x->gravity_world, d.segment<2>(kGrav));
 }
 
 // Projector onto the well-constrained eigen-directions of a 3x3 information block.
@@ -137,12 +137,12 @@ IekfReport IekfUpdate(const IekfOptions& options, const Eigen::Isometry3d& T_imu
       b = proj * b;
     }
 
-    const Vec18 d_prior = BoxMinus(x, prior);
+    const StateVec d_prior = BoxMinus(x, prior);
     A = P_inv;
     A.topLeftCorner<6, 6>() += H;
-    Vec18 rhs = -P_inv * d_prior;
+    StateVec rhs = -P_inv * d_prior;
     rhs.head<6>() -= b;
-    const Vec18 dx = A.ldlt().solve(rhs);
+    const StateVec dx = A.ldlt().solve(rhs);
     have_A = true;
     if (!dx.allFinite()) {
       report.skipped = true;

@@ -78,19 +78,20 @@ void PropagateImu(const std::vector<ImuSample>& samples, double t_end, double ac
       trace->knots.push_back(knot);
     }
 
-    // Error-state transition over dt (first order), error order [th p v bg ba g].
+    // Error-state transition over dt (first order), error order [th p v bg ba g(2)].
     StateCov F = StateCov::Identity();
     F.block<3, 3>(kRot, kRot) = SO3Exp(-w * dt);
     F.block<3, 3>(kRot, kBg) = -Eigen::Matrix3d::Identity() * dt;
     F.block<3, 3>(kPos, kVel) = Eigen::Matrix3d::Identity() * dt;
     F.block<3, 3>(kVel, kRot) = -R0 * Skew(0.5 * (a0 + a1)) * dt;
     F.block<3, 3>(kVel, kBa) = -R0 * dt;
-    F.block<3, 3>(kVel, kGrav) = Eigen::Matrix3d::Identity() * dt;
+    F.block<3, 2>(kVel, kGrav) = S2Jacobian(state->gravity_world) * dt;
     StateCov P = F * state->P * F.transpose();
     P.block<3, 3>(kRot, kRot).diagonal().array() += noise.gyro * noise.gyro * dt;
     P.block<3, 3>(kVel, kVel).diagonal().array() += noise.acc * noise.acc * dt;
     P.block<3, 3>(kBg, kBg).diagonal().array() += noise.gyro_bias * noise.gyro_bias * dt;
     P.block<3, 3>(kBa, kBa).diagonal().array() += noise.acc_bias * noise.acc_bias * dt;
+    P.block<2, 2>(kGrav, kGrav).diagonal().array() += noise.gravity_dir * noise.gravity_dir * dt;
     state->P = 0.5 * (P + P.transpose());
 
     state->p_world_imu += state->v_world * dt + 0.5 * a_world * dt * dt;

@@ -71,9 +71,10 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(c->init.min_samples < 2, "init.min_samples", &c->init.min_samples, 2);
   fix(!(c->max_imu_gap_s > 0.0), "max_imu_gap", &c->max_imu_gap_s, 0.5);
   fix(!(c->noise.gyro >= 0.0), "noise.gyro", &c->noise.gyro, 0.01);
-  fix(!(c->noise.acc >= 0.0), "noise.acc", &c->noise.acc, 0.1);
+  fix(!(c->noise.acc >= 0.0), "noise.acc", &c->noise.acc, 0.02);
   fix(!(c->noise.gyro_bias >= 0.0), "noise.gyro_bias", &c->noise.gyro_bias, 1e-4);
   fix(!(c->noise.acc_bias >= 0.0), "noise.acc_bias", &c->noise.acc_bias, 1e-3);
+  fix(!(c->noise.gravity_dir >= 0.0), "noise.gravity_dir", &c->noise.gravity_dir, 0.0);
   fix(c->iekf.max_iterations < 1, "iekf.max_iterations", &c->iekf.max_iterations, 1);
   fix(c->iekf.max_iterations > 30, "iekf.max_iterations", &c->iekf.max_iterations, 30);
   fix(!(c->iekf.laser_point_std > 0.0), "iekf.laser_point_std", &c->iekf.laser_point_std, 0.03);
@@ -195,7 +196,10 @@ struct LioPpf::Impl {
     state.P.block<3, 3>(kVel, kVel).diagonal().setConstant(1e-4);
     state.P.block<3, 3>(kBg, kBg).diagonal().setConstant(1e-6);
     state.P.block<3, 3>(kBa, kBa).diagonal().setConstant(1e-3);
-    state.P.block<3, 3>(kGrav, kGrav).diagonal().setConstant(1e-5);
+    // The gravity direction is as uncertain as the accelerometer bias it cannot be told from at
+    // rest (bias / g radians); the bias prior above is 0.03 m/s^2 (1 sigma).
+    const double tilt_sigma = std::sqrt(state.P(kBa, kBa)) / state.gravity_world.norm();
+    state.P.block<2, 2>(kGrav, kGrav).diagonal().setConstant(tilt_sigma * tilt_sigma);
     initialized = true;
     std::ostringstream os;
     os << "IMU initialized at t=" << state.stamp_s << ": |g|=" << -state.gravity_world.z()
@@ -255,15 +259,31 @@ struct LioPpf::Impl {
     return out;
   }
 
+  // Rotation of the map frame into the frame whose -z is the estimated gravity: the smallest one,
+  // so yaw is kept.
+  Eigen::Isometry3d WorldFromMap() const {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::Quaterniond::FromTwoVectors(state.gravity_world.normalized(),
+                                                    -Eigen::Vector3d::UnitZ())
+                     .toRotationMatrix();
+    return T;
+  }
+
   void FillState(ScanResult* r) const {
-    r->T_world_imu = state.T_world_imu();
+    r->T_world_map = WorldFromMap();
+    const Eigen::Matrix3d R = r->T_world_map.linear();
+    r->T_world_imu = r->T_world_map * state.T_world_imu();
     r->T_world_lidar = r->T_world_imu * config.T_imu_lidar;
-    r->velocity_world = state.v_world;
+    r->velocity_world = R * state.v_world;
     r->gyro_bias = state.gyro_bias;
     r->acc_bias = state.acc_bias;
-    r->gravity_world = state.gravity_world;
-    r->covariance = state.P;
-    r->pose_covariance = state.P.topLeftCorner<6, 6>();
+    r->gravity_map = state.gravity_world;
+    // Rotation errors are body-frame (unchanged); position and velocity errors turn with the map.
+    StateCov J = StateCov::Identity();
+    J.block<3, 3>(kPos, kPos) = R;
+    J.block<3, 3>(kVel, kVel) = R;
+    r->covariance = J * state.P * J.transpose();
+    r->pose_covariance = r->covariance.topLeftCorner<6, 6>();
   }
 
   ScanResult ProcessOne(QueuedScan& q) {
@@ -398,6 +418,12 @@ struct LioPpf::Impl {
       splitter->Finish(frame, T_world_lidar);
       if (ppf_tracker && splitter == ppf_tracker) {
         r.skeleton_planes = ppf_tracker->window().planes();
+        const Eigen::Isometry3d T_world_map = WorldFromMap();
+        for (SkeletonPlane& sp : r.skeleton_planes) {
+          sp.plane = TransformPlane(T_world_map, sp.plane);
+          sp.centroid = T_world_map * sp.centroid;
+          sp.scatter = T_world_map.linear() * sp.scatter * T_world_map.linear().transpose();
+        }
         r.skeleton_patches = ppf_tracker->patch_map().num_patches();
       }
       r.timings.ppf += MsSince(t0);

@@ -107,6 +107,33 @@ TEST(Iekf, TooFewRowsKeepsThePrediction) {
   EXPECT_TRUE(s.P.isApprox(before.P));
 }
 
+// Gravity on S2: the filter's only state of fixed magnitude. Box-plus keeps |g|, box-minus inverts
+// it, and the Jacobian the propagation uses matches finite differences.
+TEST(GravityS2, BoxOperationsKeepMagnitudeAndInvert) {
+  const std::vector<Eigen::Vector3d> gs = {Eigen::Vector3d(0, 0, -9.81),
+                                           Eigen::Vector3d(0.3, -0.2, -9.8),
+                                           Eigen::Vector3d(9.81, 0.0, 0.0)};  // basis fallback
+  for (const Eigen::Vector3d& g0 : gs) {
+    const Eigen::Matrix<double, 3, 2> B = S2Basis(g0);
+    EXPECT_LT((B.transpose() * B - Eigen::Matrix2d::Identity()).norm(), 1e-12);
+    EXPECT_LT((B.transpose() * g0).norm(), 1e-12);  // tangent to g0
+    for (const Eigen::Vector2d& d : {Eigen::Vector2d(0.01, -0.02), Eigen::Vector2d(-0.3, 0.2)}) {
+      const Eigen::Vector3d g = S2BoxPlus(g0, d);
+      EXPECT_NEAR(g.norm(), g0.norm(), 1e-12);
+      EXPECT_NEAR(std::acos(g.normalized().dot(g0.normalized())), d.norm(), 1e-9);
+      EXPECT_LT((S2BoxMinus(g, g0) - d).norm(), 1e-9);
+    }
+    EXPECT_LT(S2BoxMinus(g0, g0).norm(), 1e-15);
+    const double h = 1e-6;
+    for (int k = 0; k < 2; ++k) {
+      Eigen::Vector2d e = Eigen::Vector2d::Zero();
+      e(k) = h;
+      const Eigen::Vector3d fd = (S2BoxPlus(g0, e) - S2BoxPlus(g0, -e)) / (2 * h);
+      EXPECT_LT((fd - S2Jacobian(g0).col(k)).norm(), 1e-6) << k;
+    }
+  }
+}
+
 TEST(KnnResidual, PlaneValidityRejectsNonPlanarNeighbours) {
   Eigen::Vector3d n;
   double d;

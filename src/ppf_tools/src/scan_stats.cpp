@@ -27,7 +27,8 @@ void WriteStatsCsvHeader(std::ostream& os) {
         "t_downsample_ms,t_ppf_ms,t_residuals_ms,t_update_ms,t_map_insert_ms,t_total_ms,"
         "map_size,input_points,valid_points,downsampled_points,skeleton_points,"
         "scattered_points,discarded_points,knn_residuals,skeleton_residuals,map_inserted,"
-        "skeleton_patches\n";
+        "skeleton_patches,gyro_bias_x,gyro_bias_y,gyro_bias_z,acc_bias_x,acc_bias_y,acc_bias_z,"
+        "gravity_map_x,gravity_map_y,gravity_map_z\n";
 }
 
 void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
@@ -39,7 +40,14 @@ void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
      << t.map_insert << ',' << t.total << ',' << r.map_size << ',' << r.input_points << ','
      << r.valid_points << ',' << r.downsampled_points << ',' << r.skeleton_points << ','
      << r.scattered_points << ',' << r.discarded_points << ',' << r.knn_residuals << ','
-     << r.skeleton_residuals << ',' << r.map_inserted << ',' << r.skeleton_patches << '\n';
+     << r.skeleton_residuals << ',' << r.map_inserted << ',' << r.skeleton_patches;
+  // The filter's bias and gravity estimates: compare with ppf_sim's imu_bias.csv, or watch them
+  // settle on real data.
+  os << std::setprecision(6);
+  for (int i = 0; i < 3; ++i) os << ',' << r.gyro_bias(i);
+  for (int i = 0; i < 3; ++i) os << ',' << r.acc_bias(i);
+  for (int i = 0; i < 3; ++i) os << ',' << r.gravity_map(i);
+  os << '\n';
 }
 
 void WriteStatsJson(std::ostream& os, const std::vector<ScanResult>& results) {

@@ -1,9 +1,9 @@
-// Iterated error-state Kalman filter update on SO(3) x R^15 (state in imu_propagation.hpp).
+// Iterated error-state Kalman filter update on SO(3) x R^12 x S2 (state in imu_propagation.hpp).
 //
 // Each iteration asks every ResidualProvider for point-to-plane rows at the current estimate,
 // linearises r = n . (R (R_il p + t_il) + p) + offset about it and solves the MAP problem
 //   min |x (-) x_prior|^2_P + sum_i w_i r_i^2 / sigma^2
-// in information form (18x18, the measurement touches only rotation and position). Stops when the
+// in information form (17x17, the measurement touches only rotation and position). Stops when the
 // correction is below the convergence thresholds or after max_iterations; the posterior covariance
 // is (P^-1 + H^T R^-1 H)^-1 at the final linearisation point.
 //

@@ -1,9 +1,17 @@
 // Filter state and IMU propagation (paper Eqs. 3-7, midpoint integration) with error-state
 // covariance propagation.
 //
-// State x = (R_world_imu, p_world_imu, v_world, b_gyro, b_acc, g_world) on SO(3) x R^15.
-// Error state (18): [dtheta(0..2), dp(3..5), dv(6..8), dbg(9..11), dba(12..14), dg(15..17)] with
-// R = R_hat Exp(dtheta) (body frame) and additive errors for the rest.
+// State x = (R_world_imu, p_world_imu, v_world, b_gyro, b_acc, g_world) on
+// SO(3) x R^12 x S2: gravity keeps the magnitude measured at initialization and only its direction
+// is estimated. Error state (17): [dtheta(0..2), dp(3..5), dv(6..8), dbg(9..11), dba(12..14),
+// dg(15..16)] with R = R_hat Exp(dtheta) (body frame), g = Exp(B(g_hat) dg) g_hat (so3.hpp) and
+// additive errors for the rest.
+//
+// "world" here is the frame the map is built in: z is the measured "up" at initialization, where a
+// static accelerometer cannot tell its bias from tilt. The gravity direction in it is therefore a
+// state, not a constant: once the motion separates bias and tilt (turns), g_world leans by the
+// initialization error and the facade reports poses in the frame where the estimated gravity is
+// straight down (ScanResult::T_world_map, lio_ppf.hpp).
 #pragma once
 
 #include <vector>
@@ -15,7 +23,7 @@
 
 namespace ppf {
 
-constexpr int kStateDim = 18;
+constexpr int kStateDim = 17;
 using StateCov = Eigen::Matrix<double, kStateDim, kStateDim>;
 enum StateIndex { kRot = 0, kPos = 3, kVel = 6, kBg = 9, kBa = 12, kGrav = 15 };
 
@@ -40,9 +48,14 @@ struct NavState {
 // Continuous-time noise densities (white noise: sigma^2 * dt enters the covariance per step).
 struct ImuNoise {
   double gyro = 0.01;        // rad/s/sqrt(Hz)
-  double acc = 0.1;          // m/s^2/sqrt(Hz)
+  // m/s^2/sqrt(Hz). MEMS datasheets say ~0.002; the margin covers vibration. 0.1 made the filter
+  // discount the accelerometer so far that bias and gravity separated only slowly after turns.
+  double acc = 0.02;
   double gyro_bias = 1e-4;   // rad/s^2/sqrt(Hz) random walk
   double acc_bias = 1e-3;    // m/s^3/sqrt(Hz) random walk
+  // rad/sqrt(s): random walk of the gravity direction in the map frame (0: a fixed direction,
+  // estimated once). Non-zero lets it follow a map that tilts slowly over a long drive.
+  double gravity_dir = 0.0;
 };
 
 // Pose of the IMU at an integration knot, plus the constant (bias-corrected) body rate and world

@@ -124,13 +124,20 @@ struct ScanResult {
   std::string reason;          // human readable: why not kOk, notes (e.g. time field fallback)
   bool pose_valid = false;     // false for kInitializing / kRejected / kReset
 
+  // Poses, velocity, planes and covariances are in the gravity-aligned world: z up as the filter
+  // now estimates it, origin and yaw of the IMU at initialization. The map is built in the frame
+  // the filter started with ("map": z = the accelerometer's "up" at rest, which carries its
+  // bias); T_world_map is the rotation (about the origin, no yaw) between the two, refined as the
+  // motion makes gravity and accelerometer bias separable. Identity while nothing is known.
   Eigen::Isometry3d T_world_imu = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_world_lidar = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_world_map = Eigen::Isometry3d::Identity();
   Eigen::Vector3d velocity_world = Eigen::Vector3d::Zero();
   Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();
   Eigen::Vector3d acc_bias = Eigen::Vector3d::Zero();
-  Eigen::Vector3d gravity_world = Eigen::Vector3d::Zero();
-  StateCov covariance = StateCov::Zero();  // error-state order of imu_propagation.hpp
+  Eigen::Vector3d gravity_map = Eigen::Vector3d::Zero();  // the filter's gravity, map frame
+  // Error-state order of imu_propagation.hpp; position and velocity blocks in the world frame.
+  StateCov covariance = StateCov::Zero();
   Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();  // [rot, pos]
 
   StageTimings timings;

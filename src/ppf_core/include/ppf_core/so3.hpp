@@ -33,4 +33,38 @@ inline Eigen::Matrix3d NormalizeRotation(const Eigen::Matrix3d& R) {
   return Eigen::Quaterniond(R).normalized().toRotationMatrix();
 }
 
+// Gravity of fixed magnitude lives on the sphere S2: two error coordinates, in the tangent plane
+// of the current estimate, g = Exp(B(g) dg) g. B(g) is a fixed function of g (continuous around
+// its usual direction, straight down), so the same g always has the same tangent coordinates.
+inline Eigen::Matrix<double, 3, 2> S2Basis(const Eigen::Vector3d& g) {
+  const Eigen::Vector3d u = g.normalized();
+  // Any axis far from u works; world x unless gravity points (nearly) along it.
+  const Eigen::Vector3d ref =
+      std::abs(u.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  Eigen::Matrix<double, 3, 2> B;
+  B.col(0) = u.cross(ref).normalized();
+  B.col(1) = u.cross(B.col(0));
+  return B;
+}
+
+inline Eigen::Vector3d S2BoxPlus(const Eigen::Vector3d& g, const Eigen::Vector2d& dg) {
+  return SO3Exp(S2Basis(g) * dg) * g;
+}
+
+// Tangent coordinates at g0 of the rotation taking g0's direction to g's: S2BoxPlus(g0, result)
+// has g's direction (and g0's magnitude).
+inline Eigen::Vector2d S2BoxMinus(const Eigen::Vector3d& g, const Eigen::Vector3d& g0) {
+  const Eigen::Vector3d a = g0.normalized(), b = g.normalized();
+  const Eigen::Vector3d axis = a.cross(b);
+  const double s = axis.norm();
+  const double angle = std::atan2(s, a.dot(b));
+  const Eigen::Vector3d w = s > 1e-12 ? Eigen::Vector3d(axis * (angle / s)) : Eigen::Vector3d(axis);
+  return S2Basis(g0).transpose() * w;
+}
+
+// d(Exp(B dg) g)/d dg at dg = 0.
+inline Eigen::Matrix<double, 3, 2> S2Jacobian(const Eigen::Vector3d& g) {
+  return -Skew(g) * S2Basis(g);
+}
+
 }  // namespace ppf

@@ -225,6 +225,7 @@ void Apply(const YAML::Node& root, Config* c, ConfigLoadReport* report) {
                       {"convergence_rot", Num(&c->iekf.convergence_rot_rad)},
                       {"convergence_trans", Num(&c->iekf.convergence_trans_m)},
                       {"laser_point_std", Num(&c->iekf.laser_point_std)},
+                      {"residual_max_range", Num(&c->iekf.residual_max_range)},
                       {"min_rows", Int(&c->iekf.min_rows)},
                       {"degeneracy_min_eig_translation",
                        Num(&c->iekf.degeneracy_min_eig_translation)},

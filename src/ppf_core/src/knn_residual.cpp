@@ -37,7 +37,10 @@ void KnnResidualProvider::BeginScan(const ScanFrame& frame) {
   frame_ = &frame;
   indices_.clear();
   for (size_t i = 0; i < frame.points_lidar.size(); ++i) {
-    if (i >= frame.labels.size() || frame.labels[i] == PointLabel::kScattered) indices_.push_back(i);
+    if ((i >= frame.labels.size() || frame.labels[i] == PointLabel::kScattered) &&
+        frame.GivesResidual(frame.points_lidar[i])) {
+      indices_.push_back(i);
+    }
   }
 }
 

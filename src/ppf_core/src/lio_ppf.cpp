@@ -79,6 +79,8 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(c->iekf.max_iterations > 30, "iekf.max_iterations", &c->iekf.max_iterations, 30);
   fix(!(c->iekf.laser_point_std > 0.0), "iekf.laser_point_std", &c->iekf.laser_point_std, 0.03);
   fix(c->iekf.min_rows < 6, "iekf.min_rows", &c->iekf.min_rows, 6);
+  fix(!(c->iekf.residual_max_range >= 0.0), "iekf.residual_max_range",
+      &c->iekf.residual_max_range, 0.0);
   fix(c->knn.k < 3, "knn.k", &c->knn.k, 3);
   fix(c->knn.k > 50, "knn.k", &c->knn.k, 50);
   fix(!(c->knn.plane_threshold > 0.0), "knn.plane_threshold", &c->knn.plane_threshold, 0.1);
@@ -363,6 +365,7 @@ struct LioPpf::Impl {
     frame.T_imu_lidar = config.T_imu_lidar;
     frame.T_world_lidar_predicted = state.T_world_imu() * config.T_imu_lidar;
     frame.map = &map;
+    frame.residual_max_range = config.iekf.residual_max_range;
 
     if (!map_initialized) {
       t0 = Clock::now();

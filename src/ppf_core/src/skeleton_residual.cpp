@@ -131,7 +131,9 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   skeleton_indices_.clear();
   const size_t n = std::min(frame.labels.size(), frame.points_lidar.size());
   for (size_t i = 0; i < n; ++i) {
-    if (frame.labels[i] == PointLabel::kSkeleton) skeleton_indices_.push_back(static_cast<int>(i));
+    if (frame.labels[i] == PointLabel::kSkeleton && frame.GivesResidual(frame.points_lidar[i])) {
+      skeleton_indices_.push_back(static_cast<int>(i));
+    }
   }
   matches_.clear();
   own_normals_.clear();

@@ -2,6 +2,7 @@
 // room, degeneracy detection in a corridor, and the plane validity test.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 #include "ppf_core/iekf.hpp"
@@ -65,6 +66,30 @@ TEST(Iekf, ConvergesToKnownTransformInRoom) {
   EXPECT_LT(SO3Log(s.R_world_imu).norm(), 0.1 * test::kPi / 180.0);
   // The measurement shrinks the pose covariance.
   EXPECT_LT(s.P(kPos, kPos), 0.01 * P0(kPos, kPos));
+}
+
+// residual_max_range: only points within it give rows (they all still exist in the frame).
+TEST(KnnResidual, FarPointsGiveNoRowsBeyondResidualMaxRange) {
+  Fixture f;
+  Build(test::MakeRoomScene(), &f);
+  KnnResidualProvider knn;
+  std::vector<PointPlaneRow> all, near;
+  knn.BeginScan(f.frame);
+  knn.ComputeRows(Eigen::Isometry3d::Identity(), &all);
+  ASSERT_GT(all.size(), 100u);
+  std::vector<double> ranges;
+  for (const PointPlaneRow& r : all) ranges.push_back(r.point_lidar.norm());
+  std::nth_element(ranges.begin(), ranges.begin() + ranges.size() / 2, ranges.end());
+  // About half the rows are nearer; off the median point itself (float vs double rounding).
+  const double limit = ranges[ranges.size() / 2] + 1e-4;
+  f.frame.residual_max_range = limit;
+  knn.BeginScan(f.frame);
+  knn.ComputeRows(Eigen::Isometry3d::Identity(), &near);
+  size_t within = 0;
+  for (const PointPlaneRow& r : all) within += r.point_lidar.norm() <= limit ? 1 : 0;
+  EXPECT_EQ(near.size(), within);
+  EXPECT_LT(near.size(), all.size());
+  for (const PointPlaneRow& r : near) EXPECT_LE(r.point_lidar.norm(), limit);
 }
 
 TEST(Iekf, CorridorIsDegenerateAlongItsAxisAndKeepsThePrediction) {

@@ -38,6 +38,10 @@ struct IekfOptions {
   // there: 13.3 mm either way.
   double degeneracy_min_eig_translation = 10.0;
   double degeneracy_min_eig_rotation = 300.0;    // J^T J eigenvalue (points * m^2)
+  // Metres from the LiDAR beyond which points give no residual (0 = no limit); they are still
+  // mapped. Far rows fit planes to sparse, grazing returns and their errors act through long
+  // lever arms: on the simulated drives they tilted the map away from gravity (issue 11's note).
+  double residual_max_range = 0.0;
 };
 
 struct IekfReport {

@@ -44,6 +44,13 @@ struct ScanFrame {
   Eigen::Isometry3d T_world_lidar_predicted = Eigen::Isometry3d::Identity();  // IMU prediction
   Eigen::Isometry3d T_imu_lidar = Eigen::Isometry3d::Identity();
   const VoxelMap* map = nullptr;            // the kNN map before this scan's insertion
+  // Points farther than this from the LiDAR give no residual (0 = all do); they still enter the
+  // map, to give residuals once the sensor is nearer (IekfOptions::residual_max_range).
+  double residual_max_range = 0.0;
+  bool GivesResidual(const Eigen::Vector3f& p_lidar) const {
+    return !(residual_max_range > 0.0) ||
+           p_lidar.squaredNorm() <= residual_max_range * residual_max_range;
+  }
 };
 
 // Splits the scan before the update. Runs once per scan (kPpf mode only).

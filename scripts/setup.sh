@@ -13,6 +13,8 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 
 # Kept in one place: docker/Dockerfile and test/test_docker_files.py check against this list.
+# clang and its runtimes (libclang-rt-14-dev: ASan, UBSan, TSan, libFuzzer) serve the sanitizer
+# and fuzzing stages of scripts/test.sh (scripts/sanitize.sh, scripts/fuzz.sh).
 PPF_DEBIAN_PACKAGES=(
   build-essential cmake pkg-config git ca-certificates
   colcon python3-colcon-cmake python3-colcon-package-selection python3-colcon-test-result
@@ -24,6 +26,7 @@ PPF_DEBIAN_PACKAGES=(
   libyaml-cpp-dev libsqlite3-dev sqlite3 liblz4-dev libzstd-dev
   cyclonedds-dev cyclonedds-tools
   python3-yaml nodejs npm
+  clang libclang-rt-14-dev
 )
 
 deps=1

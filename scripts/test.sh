@@ -14,7 +14,8 @@ set +u
 source install/setup.bash
 set -u
 
-rm -rf build/*/Testing  # results of earlier runs must not be counted again
+# results of earlier runs must not be counted again
+rm -rf build/*/Testing build-asan/*/Testing build-tsan/*/Testing
 
 # Fast DDS shared-memory segments left by processes that were killed (a failed test, a crash)
 # stay in /dev/shm and can collide with the ports of new test participants. Remove only those
@@ -29,7 +30,41 @@ colcon test --parallel-workers 1 \
   --ctest-args --timeout 600 >log/colcon_test_console.log 2>&1
 colcon_rc=$?
 
-/usr/bin/python3 scripts/test_summary.py build
+# Sanitizer and fuzzing stages (scripts/sanitize.sh, scripts/fuzz.sh): their tests and fuzzers
+# are counted in the summary like the others. PPF_SKIP_SANITIZERS=1 skips them (a quick local
+# run; CI never sets it). PPF_FUZZ_SECONDS: time per fuzzer (default 45).
+stages=log/ci_stages.txt
+: >"$stages"
+stage_seconds=0
+stage() {  # stage <name> <log file> <command...>: runs it, times it, records it in $stages
+  local name="$1" logfile="$2" start rc elapsed
+  shift 2
+  echo "[test] stage $name"
+  start=$(date +%s)
+  "$@" >"$logfile" 2>&1
+  rc=$?
+  elapsed=$(( $(date +%s) - start ))
+  stage_seconds=$elapsed
+  echo "[test] stage $name: ${elapsed} s, exit $rc (log: $logfile)"
+  return $rc
+}
+if [ "${PPF_SKIP_SANITIZERS:-0}" != 1 ]; then
+  if stage "sanitize asan" log/ci_sanitize_asan.log scripts/sanitize.sh asan; then
+    echo "PASS $stage_seconds ci sanitize asan (build+run)" >>"$stages"
+  else
+    echo "FAIL $stage_seconds ci sanitize asan (build+run): see log/ci_sanitize_asan.log" >>"$stages"
+  fi
+  if stage "sanitize tsan" log/ci_sanitize_tsan.log scripts/sanitize.sh tsan; then
+    echo "PASS $stage_seconds ci sanitize tsan (build+run)" >>"$stages"
+  else
+    echo "FAIL $stage_seconds ci sanitize tsan (build+run): see log/ci_sanitize_tsan.log" >>"$stages"
+  fi
+  # fuzz.sh records one line per fuzzer itself (or a failure when nothing was built).
+  PPF_STAGE_RESULTS="$stages" stage "fuzz" log/ci_fuzz.log scripts/fuzz.sh "${PPF_FUZZ_SECONDS:-45}"
+  cat log/ci_fuzz.log
+fi
+
+/usr/bin/python3 scripts/test_summary.py build asan=build-asan tsan=build-tsan --stages "$stages"
 summary_rc=$?
 if [ $colcon_rc -ne 0 ]; then
   echo "colcon test itself failed (exit $colcon_rc): see log/colcon_test_console.log"

@@ -1,0 +1,95 @@
+#!/usr/bin/env bash
+# Sanitizer stages of CI; scripts/test.sh runs them after the normal tests, each can run alone:
+#
+#   scripts/sanitize.sh asan   clang ASan+UBSan build of ppf_msgs_idl, ppf_core, ppf_bridge, ppf_bag
+#                              and ppf_fuzz (build-asan/, install-asan/), then all their tests:
+#                              unit tests, the core's end-to-end test, the fuzz seed replays
+#   scripts/sanitize.sh tsan   clang TSan build of ppf_dds_node (build-tsan/, install-tsan/) on top
+#                              of the Release install, then all its tests: node, replay, record,
+#                              transport, end-to-end, as-documented, Cyclone interop
+#
+# Why these subsets (2-core CI, 60 minutes in all): ppf_sim and ppf_tools only drive the core
+# through long simulated runs that take minutes in Release; under ASan they alone would exceed
+# the budget, and the code they exercise (core, bag, bridge) is covered here by its own tests.
+# Under TSan only ppf_dds_node is instrumented: it owns every thread of the system (DDS listeners,
+# executor, recorder); the core is single-threaded apart from OpenMP, whose runtime is not
+# TSan-aware anyway. The libraries it links come from the Release install, uninstrumented: their
+# memory accesses are not checked there, but their locks are (TSan intercepts pthread).
+#
+# Every finding stops the test that made it (halt_on_error), so it fails. Results are left in
+# build-<kind>/*/Testing for scripts/test_summary.py. Environment: PPF_BUILD_JOBS (default 2).
+set -uo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+SAN="$ROOT/scripts/sanitizers"
+kind="${1:-}"
+jobs="${PPF_BUILD_JOBS:-2}"
+
+log() { printf '\033[1m[sanitize %s]\033[0m %s\n' "$kind" "$*"; }
+
+# colcon's setup scripts reference unset variables.
+source_setup() {
+  set +u
+  # shellcheck disable=SC1090
+  source "$1"
+  set -u
+}
+
+clean_stale_shm() {
+  # As in scripts/test.sh: Fast DDS segments of killed processes that nobody maps any more.
+  for f in /dev/shm/fastrtps_* /dev/shm/sem.fastrtps_*; do
+    [ -e "$f" ] || continue
+    if ! grep -qsF "$f" /proc/[0-9]*/maps 2>/dev/null; then rm -f "$f"; fi
+  done
+}
+
+build() {  # build <build-base> <install-base> <cache file> <colcon package selection...>
+  local bb="$1" ib="$2" cache="$3"
+  shift 3
+  log "building ($*) into $bb"
+  MAKEFLAGS="-j${jobs}" colcon --log-base "log/$kind" build \
+    --build-base "$bb" --install-base "$ib" --parallel-workers 1 \
+    --event-handlers console_cohesion- console_stderr+ \
+    "$@" --cmake-args -C "$cache"
+}
+
+run_tests() {  # run_tests <build-base> <install-base> <packages...>
+  local bb="$1" ib="$2"
+  shift 2
+  clean_stale_shm
+  log "testing $*"
+  colcon --log-base "log/$kind" test --build-base "$bb" --install-base "$ib" \
+    --parallel-workers 1 --packages-select "$@" \
+    --event-handlers console_cohesion- console_direct- \
+    --ctest-args --timeout 900 >"log/sanitize_${kind}_test.log" 2>&1
+}
+
+mkdir -p log
+rm -rf "build-$kind"/*/Testing  # a failed build must not leave an earlier run's results to count
+case "$kind" in
+  asan)
+    # halt_on_error: the first report ends the process (ASan does by default; UBSan only with
+    # it). detect_leaks: LeakSanitizer at exit of every test, suppressions justified in the file.
+    export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:strict_string_checks=1:check_initialization_order=1:detect_stack_use_after_return=1"
+    export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1:suppressions=$SAN/ubsan.supp"
+    export LSAN_OPTIONS="suppressions=$SAN/lsan.supp:print_suppressions=0"
+    build build-asan install-asan "$SAN/asan.cmake" --packages-up-to ppf_fuzz || exit 1
+    source_setup install-asan/setup.bash
+    run_tests build-asan install-asan ppf_msgs_idl ppf_core ppf_bridge ppf_bag ppf_fuzz
+    ;;
+  tsan)
+    [ -f install/setup.bash ] || { echo "tsan: build the Release workspace first (scripts/setup.sh)" >&2; exit 1; }
+    # The Release install is the underlay: ppf_sim, ppf_eval, ppf_offline and the libraries.
+    source_setup install/setup.bash
+    # second_deadlock_stack: lock-order inversions (issue 12's recorder deadlock) show both sides.
+    export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$SAN/tsan.supp:print_suppressions=0"
+    build build-tsan install-tsan "$SAN/tsan.cmake" --packages-select ppf_dds_node || exit 1
+    source_setup install-tsan/setup.bash
+    run_tests build-tsan install-tsan ppf_dds_node
+    ;;
+  *)
+    echo "usage: $0 asan|tsan" >&2
+    exit 2
+    ;;
+esac

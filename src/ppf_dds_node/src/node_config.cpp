@@ -28,11 +28,27 @@ bool Read(const YAML::Node& section, const std::string& path, const std::string&
   return true;
 }
 
+// YAML lets a key be a list or a map ("? [a]: 1", or a stray "? " typed before a key); ours are
+// all names, and as<std::string>() would throw on such a key. Returns false and reports it.
+bool KeyName(const YAML::Node& key, const std::string& path, std::string* name,
+             NodeConfigReport* report) {
+  if (!key.IsScalar()) {
+    report->ok = false;
+    report->error = "config key " + (path.empty() ? std::string("at the top level") :
+                                     "in section '" + path.substr(0, path.size() - 1) + "'") +
+                    " is a list or a map; keys must be plain names";
+    return false;
+  }
+  *name = key.Scalar();
+  return true;
+}
+
 void WarnUnknown(const YAML::Node& section, const std::string& path,
                  const std::vector<std::string>& known, NodeConfigReport* report) {
   if (!section.IsMap()) return;
   for (const auto& kv : section) {
-    const std::string key = kv.first.as<std::string>();
+    std::string key;
+    if (!KeyName(kv.first, path, &key, report)) continue;
     bool found = false;
     for (const auto& k : known) found = found || k == key;
     if (!found) report->warnings.push_back("unknown config key '" + path + key + "' ignored");
@@ -78,7 +94,8 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
     std::string keys;
     bool any_known = false;
     for (const auto& kv : root) {
-      const std::string key = kv.first.as<std::string>();
+      std::string key;
+      if (!KeyName(kv.first, "", &key, &r)) return r;
       for (const auto& k : sections) any_known = any_known || k == key;
       if (keys.size() < 60) keys += (keys.empty() ? "" : ", ") + key;
     }

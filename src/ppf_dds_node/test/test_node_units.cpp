@@ -66,6 +66,19 @@ TEST(NodeConfig, WrongTypesAndValuesAreErrorsNamingTheKey) {
   EXPECT_FALSE(r.ok);
 }
 
+// Found by fuzz_node_config: a key that is itself a list or a map (YAML allows it, a typo such as
+// "? sensor_depth: 2" produces one) threw out of the loader and aborted ppf_node at start-up.
+TEST(NodeConfig, NonScalarKeysAreRefusedWithAReason) {
+  for (const char* yaml : {"? [a]\n: 1\n", "[a]: 1\n", "dds:\n  {x: 1}: 2\n",
+                           "dds: {domain_id: 1}\n? {qos: 1}\n: 2\n"}) {
+    NodeConfig c;
+    NodeConfigReport r;
+    ASSERT_NO_THROW(r = LoadNodeConfigString(yaml, &c)) << yaml;
+    EXPECT_FALSE(r.ok) << yaml;
+    EXPECT_NE(r.error.find("key"), std::string::npos) << r.error;
+  }
+}
+
 TEST(NodeConfig, UnknownKeysWarnAndNonsenseIsClamped) {
   NodeConfig c;
   const auto r =

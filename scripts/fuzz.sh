@@ -19,7 +19,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 seconds="${1:-45}"
 shift || true
-bin_dir="install-asan/lib/ppf_fuzz"
+bin_dir="install-asan/ppf_fuzz/lib/ppf_fuzz"
 if [ ! -d "$bin_dir" ]; then
   echo "fuzz: no fuzz targets in $bin_dir: run scripts/sanitize.sh asan first" >&2
   [ -n "${PPF_STAGE_RESULTS:-}" ] && echo "FAIL 0 fuzz no fuzz targets built" >>"$PPF_STAGE_RESULTS"

@@ -59,8 +59,11 @@ class PathIndex {
  private:
   static constexpr double kCell = 4.0;
   static int Cell(double v) { return static_cast<int>(std::floor(v / kCell)); }
+  // Shifted as unsigned: cells west of the origin have negative i, and left-shifting a negative
+  // signed value is undefined before C++20 (UBSan in scripts/sanitize.sh asan).
   static int64_t Key(int i, int j) {
-    return (static_cast<int64_t>(i) << 32) ^ static_cast<int64_t>(static_cast<uint32_t>(j));
+    return static_cast<int64_t>((uint64_t{static_cast<uint32_t>(i)} << 32) |
+                                uint64_t{static_cast<uint32_t>(j)});
   }
   void Insert(double x, double y) { grid_[Key(Cell(x), Cell(y))].emplace_back(x, y); }
   std::unordered_map<int64_t, std::vector<std::pair<double, double>>> grid_;

@@ -189,17 +189,21 @@ std::vector<std::pair<size_t, size_t>> AssociateByStamp(const Trajectory& ref,
   return out;
 }
 
+namespace {
+
+Eigen::Vector3d Mean(const std::vector<Eigen::Vector3d>& points) {
+  Eigen::Vector3d m = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& p : points) m += p;
+  return m / static_cast<double>(points.size());
+}
+
+}  // namespace
+
 bool Umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
              bool with_scale, Eigen::Matrix3d* R, Eigen::Vector3d* t, double* scale) {
   const size_t n = src.size();
   if (n < 3 || dst.size() != n) return false;
-  Eigen::Vector3d ms = Eigen::Vector3d::Zero(), md = Eigen::Vector3d::Zero();
-  for (size_t i = 0; i < n; ++i) {
-    ms += src[i];
-    md += dst[i];
-  }
-  ms /= static_cast<double>(n);
-  md /= static_cast<double>(n);
+  const Eigen::Vector3d ms = Mean(src), md = Mean(dst);
   double var_s = 0.0;
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
   for (size_t i = 0; i < n; ++i) {
@@ -224,13 +228,7 @@ bool AlignPositionYaw(const std::vector<Eigen::Vector3d>& src,
                       Eigen::Vector3d* t) {
   const size_t n = src.size();
   if (n < 2 || dst.size() != n) return false;
-  Eigen::Vector3d ms = Eigen::Vector3d::Zero(), md = Eigen::Vector3d::Zero();
-  for (size_t i = 0; i < n; ++i) {
-    ms += src[i];
-    md += dst[i];
-  }
-  ms /= static_cast<double>(n);
-  md /= static_cast<double>(n);
+  const Eigen::Vector3d ms = Mean(src), md = Mean(dst);
   // With R = Rz(yaw), sum |d - R s|^2 over the centred points depends on yaw only through
   // -2 (cos(yaw) C + sin(yaw) S); z does not rotate, so only x and y enter C and S.
   double c = 0.0, s = 0.0, spread = 0.0;

@@ -286,6 +286,11 @@ struct LioPpf::Impl {
     J.block<3, 3>(kVel, kVel) = R;
     r->covariance = J * state.P * J.transpose();
     r->pose_covariance = r->covariance.topLeftCorner<6, 6>();
+    for (SkeletonPlane& sp : r->skeleton_planes) {
+      sp.plane = TransformPlane(r->T_world_map, sp.plane);
+      sp.centroid = r->T_world_map * sp.centroid;
+      sp.scatter = R * sp.scatter * R.transpose();
+    }
   }
 
   ScanResult ProcessOne(QueuedScan& q) {
@@ -420,13 +425,7 @@ struct LioPpf::Impl {
       t0 = Clock::now();
       splitter->Finish(frame, T_world_lidar);
       if (ppf_tracker && splitter == ppf_tracker) {
-        r.skeleton_planes = ppf_tracker->window().planes();
-        const Eigen::Isometry3d T_world_map = WorldFromMap();
-        for (SkeletonPlane& sp : r.skeleton_planes) {
-          sp.plane = TransformPlane(T_world_map, sp.plane);
-          sp.centroid = T_world_map * sp.centroid;
-          sp.scatter = T_world_map.linear() * sp.scatter * T_world_map.linear().transpose();
-        }
+        r.skeleton_planes = ppf_tracker->window().planes();  // map frame until FillState
         r.skeleton_patches = ppf_tracker->patch_map().num_patches();
       }
       r.timings.ppf += MsSince(t0);

@@ -157,8 +157,10 @@ Eigen::Isometry3d ParseTransform(const YAML::Node& n, const std::string& key,
       report->warnings.push_back("unknown key '" + path + "' ignored");
     }
   }
-  if (rotations > 1) throw TypeError("key '" + key + "': give only one of rotation, "
-                                     "quaternion_wxyz, rpy_deg");
+  if (rotations > 1)
+    throw TypeError("key '" + key +
+                    "': give only one of rotation, "
+                    "quaternion_wxyz, rpy_deg");
   return T;
 }
 
@@ -171,19 +173,22 @@ void Apply(const YAML::Node& root, Config* c, ConfigLoadReport* report) {
                             {"point_stride", Int(&c->point_stride)},
                             {"scan_voxel_size", Num(&c->scan_voxel_size)}};
   const Table time = {
-      {"field", [c](const YAML::Node& n, const std::string& k) { c->time.field_name = AsString(n, k); }},
+      {"field",
+       [c](const YAML::Node& n, const std::string& k) { c->time.field_name = AsString(n, k); }},
       {"unit_scale", Num(&c->time.unit_scale_s)},
       {"reference",
        [c](const YAML::Node& n, const std::string& k) {
-         c->time.reference = AsEnum<TimeReference>(n, k, {{"auto", TimeReference::kAuto},
-                                                          {"relative", TimeReference::kRelative},
-                                                          {"absolute", TimeReference::kAbsolute}});
+         c->time.reference = AsEnum<TimeReference>(n, k,
+                                                   {{"auto", TimeReference::kAuto},
+                                                    {"relative", TimeReference::kRelative},
+                                                    {"absolute", TimeReference::kAbsolute}});
        }},
       {"stamp",
        [c](const YAML::Node& n, const std::string& k) {
-         c->time.stamp_position = AsEnum<StampPosition>(
-             n, k, {{"auto", StampPosition::kAuto}, {"start", StampPosition::kStart},
-                    {"end", StampPosition::kEnd}});
+         c->time.stamp_position = AsEnum<StampPosition>(n, k,
+                                                        {{"auto", StampPosition::kAuto},
+                                                         {"start", StampPosition::kStart},
+                                                         {"end", StampPosition::kEnd}});
        }},
       {"no_time_policy",
        [c](const YAML::Node& n, const std::string& k) {
@@ -192,21 +197,25 @@ void Apply(const YAML::Node& root, Config* c, ConfigLoadReport* report) {
        }},
       {"scan_period", Num(&c->time.scan_period_s)},
       {"azimuth_clockwise", Bool(&c->time.azimuth_clockwise)}};
-  const Table map = {
-      {"resolution", Num(&c->map.resolution)},
-      {"nearby",
-       [c](const YAML::Node& n, const std::string& k) {
-         const long long v = AsInt(n, k);
-         if (v == 1) c->map.nearby = NearbyType::kCenter;
-         else if (v == 7) c->map.nearby = NearbyType::kNearby7;
-         else if (v == 19) c->map.nearby = NearbyType::kNearby19;
-         else if (v == 27) c->map.nearby = NearbyType::kNearby27;
-         else throw TypeError("key '" + k + "': must be 1, 7, 19 or 27");
-       }},
-      {"max_voxels", Size(&c->map.max_voxels)},
-      {"max_points_per_voxel", Size(&c->map.max_points_per_voxel)},
-      {"min_point_distance", Num(&c->map.min_point_distance)},
-      {"radius", Num(&c->map_radius)}};
+  const Table map = {{"resolution", Num(&c->map.resolution)},
+                     {"nearby",
+                      [c](const YAML::Node& n, const std::string& k) {
+                        const long long v = AsInt(n, k);
+                        if (v == 1)
+                          c->map.nearby = NearbyType::kCenter;
+                        else if (v == 7)
+                          c->map.nearby = NearbyType::kNearby7;
+                        else if (v == 19)
+                          c->map.nearby = NearbyType::kNearby19;
+                        else if (v == 27)
+                          c->map.nearby = NearbyType::kNearby27;
+                        else
+                          throw TypeError("key '" + k + "': must be 1, 7, 19 or 27");
+                      }},
+                     {"max_voxels", Size(&c->map.max_voxels)},
+                     {"max_points_per_voxel", Size(&c->map.max_points_per_voxel)},
+                     {"min_point_distance", Num(&c->map.min_point_distance)},
+                     {"radius", Num(&c->map_radius)}};
   const Table imu = {{"init_duration", Num(&c->init.duration_s)},
                      {"init_min_samples", Int(&c->init.min_samples)},
                      {"init_max_acc_std", Num(&c->init.max_acc_std)},
@@ -221,15 +230,18 @@ void Apply(const YAML::Node& root, Config* c, ConfigLoadReport* report) {
                      {"acc_bias_noise", Num(&c->noise.acc_bias)},
                      {"gravity_dir_noise", Num(&c->noise.gravity_dir)},
                      {"max_gap", Num(&c->max_imu_gap_s)}};
-  const Table iekf = {{"max_iterations", Int(&c->iekf.max_iterations)},
-                      {"convergence_rot", Num(&c->iekf.convergence_rot_rad)},
-                      {"convergence_trans", Num(&c->iekf.convergence_trans_m)},
-                      {"laser_point_std", Num(&c->iekf.laser_point_std)},
-                      {"residual_max_range", Num(&c->iekf.residual_max_range)},
-                      {"min_rows", Int(&c->iekf.min_rows)},
-                      {"degeneracy_min_eig_translation",
-                       Num(&c->iekf.degeneracy_min_eig_translation)},
-                      {"degeneracy_min_eig_rotation", Num(&c->iekf.degeneracy_min_eig_rotation)}};
+  const Table iekf = {
+      {"max_iterations", Int(&c->iekf.max_iterations)},
+      {"convergence_rot", Num(&c->iekf.convergence_rot_rad)},
+      {"convergence_trans", Num(&c->iekf.convergence_trans_m)},
+      {"laser_point_std", Num(&c->iekf.laser_point_std)},
+      {"laser_angular_std", Num(&c->iekf.laser_angular_std)},
+      {"refined_gate", Num(&c->iekf.refined_gate)},
+      {"refined_gate_after", Num(&c->iekf.refined_gate_after_s)},
+      {"residual_max_range", Num(&c->iekf.residual_max_range)},
+      {"min_rows", Int(&c->iekf.min_rows)},
+      {"degeneracy_min_eig_translation", Num(&c->iekf.degeneracy_min_eig_translation)},
+      {"degeneracy_min_eig_rotation", Num(&c->iekf.degeneracy_min_eig_rotation)}};
   const Table knn = {{"k", Int(&c->knn.k)},
                      {"max_neighbor_distance", Num(&c->knn.max_neighbor_distance)},
                      {"plane_threshold", Num(&c->knn.plane_threshold)},
@@ -254,7 +266,8 @@ void Apply(const YAML::Node& root, Config* c, ConfigLoadReport* report) {
            }
          }
        }},
-      {"preprocess", [&](const YAML::Node& n, const std::string& k) { ApplyTable(n, k, preprocess, report); }},
+      {"preprocess",
+       [&](const YAML::Node& n, const std::string& k) { ApplyTable(n, k, preprocess, report); }},
       {"time", [&](const YAML::Node& n, const std::string& k) { ApplyTable(n, k, time, report); }},
       {"map", [&](const YAML::Node& n, const std::string& k) { ApplyTable(n, k, map, report); }},
       {"imu", [&](const YAML::Node& n, const std::string& k) { ApplyTable(n, k, imu, report); }},

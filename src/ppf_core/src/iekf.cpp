@@ -1,5 +1,6 @@
 #include "ppf_core/iekf.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 
@@ -53,12 +54,38 @@ Eigen::Matrix3d StrongProjector(const Eigen::Matrix3d& info, double min_eig, con
     } else {
       char buf[160];
       std::snprintf(buf, sizeof(buf), "%s%s along (%.2f %.2f %.2f): eig %.1f < %.1f",
-                    reason->empty() ? "" : "; ", what, v.x(), v.y(), v.z(),
-                    es.eigenvalues()(i), min_eig);
+                    reason->empty() ? "" : "; ", what, v.x(), v.y(), v.z(), es.eigenvalues()(i),
+                    min_eig);
       *reason += buf;
     }
   }
   return proj;
+}
+
+// Drops rows whose residual exceeds the refined gate, widened to 3 robust sigmas of this
+// iteration's residuals when the whole scan sits farther out (an estimate still far off): a fixed
+// narrow gate would then keep only the rows that agree with the wrong estimate.
+void RefineGate(double refined_gate, const Eigen::Isometry3d& T_world_lidar,
+                std::vector<PointPlaneRow>* rows, std::vector<size_t>* ends) {
+  std::vector<double> res(rows->size());
+  for (size_t k = 0; k < rows->size(); ++k) {
+    const PointPlaneRow& row = (*rows)[k];
+    res[k] = std::abs(row.normal_world.dot(T_world_lidar * row.point_lidar) + row.offset);
+  }
+  if (res.empty()) return;
+  std::vector<double> sorted = res;
+  const auto mid = sorted.begin() + static_cast<long>(sorted.size() / 2);
+  std::nth_element(sorted.begin(), mid, sorted.end());
+  const double gate = std::max(refined_gate, 3.0 * 1.4826 * *mid);
+  size_t kept = 0, begin = 0;
+  for (size_t& end : *ends) {
+    for (size_t k = begin; k < end; ++k) {
+      if (res[k] < gate) (*rows)[kept++] = (*rows)[k];
+    }
+    begin = end;
+    end = kept;
+  }
+  rows->resize(kept);
 }
 
 }  // namespace
@@ -81,10 +108,15 @@ IekfReport IekfUpdate(const IekfOptions& options, const Eigen::Isometry3d& T_imu
     const Eigen::Isometry3d T_world_lidar = x.T_world_imu() * T_imu_lidar;
     rows.clear();
     report.rows_per_provider.assign(providers.size(), 0);
+    std::vector<size_t> ends(providers.size());
     for (size_t i = 0; i < providers.size(); ++i) {
-      const size_t before = rows.size();
       providers[i]->ComputeRows(T_world_lidar, &rows);
-      report.rows_per_provider[i] = static_cast<int>(rows.size() - before);
+      ends[i] = rows.size();
+    }
+    if (iter > 0 && options.refined_gate > 0.0)
+      RefineGate(options.refined_gate, T_world_lidar, &rows, &ends);
+    for (size_t i = 0; i < providers.size(); ++i) {
+      report.rows_per_provider[i] = static_cast<int>(ends[i] - (i == 0 ? 0 : ends[i - 1]));
     }
     report.residuals_ms += MsSince(t0);
     report.num_rows = static_cast<int>(rows.size());
@@ -110,25 +142,34 @@ IekfReport IekfUpdate(const IekfOptions& options, const Eigen::Isometry3d& T_imu
       j.head<3>() = p_imu.cross(R.transpose() * row.normal_world);
       j.tail<3>() = row.normal_world;
     }
+    // JtJ (row weights only) judges the geometry; the update uses the rows' range-dependent noise
+    // too, so a far row counts less but still pins a direction nothing else observes.
     Mat6 JtJ = Mat6::Zero();
+    Mat6 JtJ_noise = Mat6::Zero();
     Vec6 Jtr = Vec6::Zero();
+    const double ang_var = options.laser_angular_std * options.laser_angular_std;
+    const double lin_var = options.laser_point_std * options.laser_point_std;
     for (long i = 0; i < n; ++i) {
-      const double w = rows[static_cast<size_t>(i)].weight;
-      JtJ.noalias() += w * J[static_cast<size_t>(i)] * J[static_cast<size_t>(i)].transpose();
-      Jtr.noalias() += w * J[static_cast<size_t>(i)] * r[static_cast<size_t>(i)];
+      const PointPlaneRow& row = rows[static_cast<size_t>(i)];
+      const Vec6& j = J[static_cast<size_t>(i)];
+      const Mat6 jjt = j * j.transpose();
+      JtJ.noalias() += row.weight * jjt;
+      const double w = row.weight * lin_var / (lin_var + ang_var * row.point_lidar.squaredNorm());
+      JtJ_noise.noalias() += w * jjt;
+      Jtr.noalias() += w * j * r[static_cast<size_t>(i)];
     }
 
     // Degeneracy from the first iteration's geometry (later ones see nearly the same matches).
     report.degenerate_reason.clear();
     Mat6 proj = Mat6::Zero();
     proj.topLeftCorner<3, 3>() =
-        StrongProjector(JtJ.topLeftCorner<3, 3>(), options.degeneracy_min_eig_rotation,
-                        "rotation", &report.eig_rotation, &report.degenerate_reason);
+        StrongProjector(JtJ.topLeftCorner<3, 3>(), options.degeneracy_min_eig_rotation, "rotation",
+                        &report.eig_rotation, &report.degenerate_reason);
     proj.bottomRightCorner<3, 3>() =
         StrongProjector(JtJ.bottomRightCorner<3, 3>(), options.degeneracy_min_eig_translation,
                         "translation", &report.eig_translation, &report.degenerate_reason);
     report.degenerate = !report.degenerate_reason.empty();
-    Mat6 H = inv_var * JtJ;
+    Mat6 H = inv_var * JtJ_noise;
     Vec6 b = inv_var * Jtr;
     if (report.degenerate) {
       // Measurements say nothing trustworthy along weak directions: drop them there so the
@@ -154,7 +195,10 @@ IekfReport IekfUpdate(const IekfOptions& options, const Eigen::Isometry3d& T_imu
     BoxPlus(dx, &x);
     report.iterations = iter + 1;
     report.update_ms += MsSince(t0);
-    if (dx.segment<3>(kRot).norm() < options.convergence_rot_rad &&
+    // With a refined gate the first iteration's rows only bring the estimate near: the posterior
+    // is built from gated rows.
+    const bool gated = options.refined_gate <= 0.0 || iter > 0;
+    if (gated && dx.segment<3>(kRot).norm() < options.convergence_rot_rad &&
         dx.segment<3>(kPos).norm() < options.convergence_trans_m) {
       report.converged = true;
       break;

@@ -56,8 +56,8 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(c->max_range > c->min_range), "max_range", &c->max_range, c->min_range + 100.0);
   fix(c->point_stride < 1, "point_stride", &c->point_stride, 1);
   fix(!(c->scan_voxel_size >= 0.0), "scan_voxel_size", &c->scan_voxel_size, 0.5);
-  fix(c->scan_voxel_size > 0.0 && c->scan_voxel_size < 0.01, "scan_voxel_size",
-      &c->scan_voxel_size, 0.01);
+  fix(c->scan_voxel_size > 0.0 && c->scan_voxel_size < 0.01, "scan_voxel_size", &c->scan_voxel_size,
+      0.01);
   fix(!(c->map.resolution >= 0.05), "map.resolution", &c->map.resolution, 0.05);
   fix(c->map.max_voxels < 1000, "map.max_voxels", &c->map.max_voxels, size_t{1000});
   fix(c->map.max_points_per_voxel < 1, "map.max_points_per_voxel", &c->map.max_points_per_voxel,
@@ -78,9 +78,14 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(c->iekf.max_iterations < 1, "iekf.max_iterations", &c->iekf.max_iterations, 1);
   fix(c->iekf.max_iterations > 30, "iekf.max_iterations", &c->iekf.max_iterations, 30);
   fix(!(c->iekf.laser_point_std > 0.0), "iekf.laser_point_std", &c->iekf.laser_point_std, 0.03);
+  fix(!(c->iekf.laser_angular_std >= 0.0), "iekf.laser_angular_std", &c->iekf.laser_angular_std,
+      0.005);
+  fix(!(c->iekf.refined_gate >= 0.0), "iekf.refined_gate", &c->iekf.refined_gate, 0.1);
+  fix(!(c->iekf.refined_gate_after_s >= 0.0), "iekf.refined_gate_after",
+      &c->iekf.refined_gate_after_s, 3.0);
   fix(c->iekf.min_rows < 6, "iekf.min_rows", &c->iekf.min_rows, 6);
-  fix(!(c->iekf.residual_max_range >= 0.0), "iekf.residual_max_range",
-      &c->iekf.residual_max_range, 0.0);
+  fix(!(c->iekf.residual_max_range >= 0.0), "iekf.residual_max_range", &c->iekf.residual_max_range,
+      0.0);
   fix(c->knn.k < 3, "knn.k", &c->knn.k, 3);
   fix(c->knn.k > 50, "knn.k", &c->knn.k, 50);
   fix(!(c->knn.plane_threshold > 0.0), "knn.plane_threshold", &c->knn.plane_threshold, 0.1);
@@ -205,8 +210,8 @@ struct LioPpf::Impl {
     initialized = true;
     std::ostringstream os;
     os << "IMU initialized at t=" << state.stamp_s << ": |g|=" << -state.gravity_world.z()
-       << " m/s^2, acc_scale=" << init.acc_scale() << ", gyro bias=["
-       << state.gyro_bias.transpose() << "]";
+       << " m/s^2, acc_scale=" << init.acc_scale() << ", gyro bias=[" << state.gyro_bias.transpose()
+       << "]";
     Log(LogLevel::kInfo, os.str());
   }
 
@@ -376,6 +381,7 @@ struct LioPpf::Impl {
       t0 = Clock::now();
       InsertScattered(frame, frame.T_world_lidar_predicted, &r);
       map_initialized = !frame.points_lidar.empty();
+      map_init_stamp_s = t_end;
       r.timings.map_insert = MsSince(t0);
       r.status = map_initialized ? Status::kOk : Status::kInitializing;
       Append(&r.reason, map_initialized ? "map initialized" : "empty first scan");
@@ -394,9 +400,12 @@ struct LioPpf::Impl {
       r.timings.ppf = MsSince(t0);
     }
     for (PointLabel l : frame.labels) {
-      if (l == PointLabel::kSkeleton) ++r.skeleton_points;
-      else if (l == PointLabel::kScattered) ++r.scattered_points;
-      else ++r.discarded_points;
+      if (l == PointLabel::kSkeleton)
+        ++r.skeleton_points;
+      else if (l == PointLabel::kScattered)
+        ++r.scattered_points;
+      else
+        ++r.discarded_points;
     }
 
     std::vector<ResidualProvider*> providers;
@@ -409,7 +418,9 @@ struct LioPpf::Impl {
       for (auto& p : extra) providers.push_back(p.get());
     }
     for (ResidualProvider* p : providers) p->BeginScan(frame);
-    const IekfReport rep = IekfUpdate(config.iekf, config.T_imu_lidar, providers, &state);
+    IekfOptions iekf = config.iekf;
+    if (t_end - map_init_stamp_s < iekf.refined_gate_after_s) iekf.refined_gate = 0.0;
+    const IekfReport rep = IekfUpdate(iekf, config.T_imu_lidar, providers, &state);
     r.timings.residuals = rep.residuals_ms;
     r.timings.update = rep.update_ms;
     r.iterations = rep.iterations;
@@ -417,8 +428,10 @@ struct LioPpf::Impl {
     r.eig_rotation = rep.eig_rotation;
     r.eig_translation = rep.eig_translation;
     for (size_t i = 0; i < rep.rows_per_provider.size(); ++i) {
-      if (i == 0) r.knn_residuals = static_cast<size_t>(rep.rows_per_provider[i]);
-      else r.skeleton_residuals += static_cast<size_t>(rep.rows_per_provider[i]);
+      if (i == 0)
+        r.knn_residuals = static_cast<size_t>(rep.rows_per_provider[i]);
+      else
+        r.skeleton_residuals += static_cast<size_t>(rep.rows_per_provider[i]);
     }
     const Eigen::Isometry3d T_world_lidar = state.T_world_imu() * config.T_imu_lidar;
     if (config.mode == Mode::kPpf && splitter) {
@@ -485,6 +498,7 @@ struct LioPpf::Impl {
   VoxelGridDownsampler downsampler;  // keeps its hash table between scans
   bool initialized = false;
   bool map_initialized = false;
+  double map_init_stamp_s = 0.0;
   double last_imu_stamp = -std::numeric_limits<double>::infinity();
   double last_scan_end = -std::numeric_limits<double>::infinity();
   size_t dropped_imu = 0;

@@ -15,9 +15,11 @@
 //          radius }
 //   imu: { init_duration, init_min_samples, init_max_acc_std, init_max_gyro_std, acc_scale,
 //          gravity, gyro_noise, acc_noise, gyro_bias_noise, acc_bias_noise, max_gap }
-//   iekf: { max_iterations, convergence_rot, convergence_trans, laser_point_std, min_rows,
+//   iekf: { max_iterations, convergence_rot, convergence_trans, laser_point_std,
+//           laser_angular_std, refined_gate, refined_gate_after, residual_max_range,
+//           min_rows,
 //           degeneracy_min_eig_translation, degeneracy_min_eig_rotation }
-//   knn: { k, max_neighbor_distance, plane_threshold, max_residual }
+//   knn: { k, max_neighbor_distance, plane_threshold, min_plane_spread, max_residual }
 //   num_threads: 0
 //   ppf: { ... }   (owned by the plane pre-fitting config; not interpreted here, not warned)
 #pragma once

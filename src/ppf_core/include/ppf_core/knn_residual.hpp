@@ -21,11 +21,8 @@ struct KnnOptions {
   // poorly defined. Off by default: with 0.5 m voxels it also removes most floor rows of a
   // 16-beam LiDAR (z then rests on the IMU alone); it pays off with finer voxels (0.25 m).
   double min_plane_spread = 0.0;
-  // Metres; larger residuals are outliers. On the simulated urban drives 0.1 keeps the map far
-  // closer to gravity (wrong associations on the road pass 0.5 unweighted, and they are not
-  // symmetric about the vehicle), but it loses the registration over the park's bumpy start and
-  // in the unit tests' small room; until the gate adapts to that, 0.5 stays. The figures are in
-  // the notes of issue 11.
+  // Metres; larger residuals are outliers. Wide enough for the prediction's error; the IEKF's
+  // refined gate (IekfOptions::refined_gate) narrows it once the estimate is near.
   double max_residual = 0.5;
   int num_threads = 0;                // 0 = OpenMP default
 };

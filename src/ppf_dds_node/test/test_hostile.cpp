@@ -180,8 +180,19 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
 
   // Nothing else went missing or wrong: every valid (and replacing) cloud was processed, each
   // after initialization gave one odometry message, all received by the peer, finite, in order.
+  // Nothing vanished unseen: what did not arrive is counted lost (sequence gaps). 45 cloud
+  // defects follow valid clouds; 7 IMU defects (the swapped sample is not in sent_imu).
+  EXPECT_EQ(SummaryField(s, "scans_received") + SummaryField(s, "scans_lost"),
+            SummaryField(run.result, "sent_scans") + 45);
+  EXPECT_EQ(SummaryField(s, "imu_received") + SummaryField(s, "imu_lost"),
+            SummaryField(run.result, "sent_imu") + 7);
+  // And nothing was lost (loopback, reliable, deep histories) unless the node runs under
+  // ThreadSanitizer: there the instrumented listener falls far enough behind around the 67 MB
+  // cloud that IMU samples are overwritten before delivery (measured: 38 of 1607, counted).
   EXPECT_EQ(SummaryField(s, "scans_lost"), 0);
-  EXPECT_EQ(SummaryField(s, "imu_lost"), 0);
+  if (!kUnderTsan) {
+    EXPECT_EQ(SummaryField(s, "imu_lost"), 0);
+  }
   EXPECT_EQ(SummaryField(s, "scans_dropped"), 0);
   EXPECT_EQ(SummaryField(run.result, "sent_scans"), clouds);
   EXPECT_EQ(SummaryField(s, "scans_processed"), clouds);

@@ -1,6 +1,10 @@
 #include "ppf_bridge/convert.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <sstream>
+
+#include "ppf_core/time_field.hpp"
 
 namespace ppf::bridge {
 
@@ -40,15 +44,46 @@ std::optional<CloudView> ToCloudView(const sensor_msgs::msg::PointCloud2& msg, s
   view.row_step = msg.row_step();
   view.is_bigendian = msg.is_bigendian();
   view.fields.reserve(msg.fields().size());
+  auto fail = [error](const std::string& why) {
+    if (error) *error = why;
+    return std::nullopt;
+  };
   for (const auto& f : msg.fields()) {
     if (f.datatype() < 1 || f.datatype() > 8) {
-      if (error) *error = "field '" + f.name() + "' has unknown datatype " + std::to_string(f.datatype());
-      return std::nullopt;
+      return fail("field '" + f.name() + "' has unknown datatype " + std::to_string(f.datatype()));
     }
-    view.fields.push_back(FieldDesc{f.name(), f.offset(), static_cast<FieldType>(f.datatype()), f.count()});
+    // Readers take the first field of a name; a second one means the writer's layout is not what
+    // either of them describes.
+    for (const FieldDesc& seen : view.fields) {
+      if (seen.name == f.name()) return fail("duplicate field '" + f.name() + "'");
+    }
+    const FieldDesc desc{f.name(), f.offset(), static_cast<FieldType>(f.datatype()), f.count()};
+    // Every field must lie inside the point, not only the ones the core reads: a field beyond
+    // point_step means point_step or the offsets are wrong, so no field can be trusted.
+    const uint64_t end = static_cast<uint64_t>(desc.offset) +
+                         FieldTypeSize(desc.type) * std::max<uint64_t>(desc.count, 1);
+    if (end > msg.point_step()) {
+      return fail("field '" + f.name() + "' (offset " + std::to_string(desc.offset) + ", " +
+                  std::to_string(end - desc.offset) + " bytes) lies beyond point_step " +
+                  std::to_string(msg.point_step()));
+    }
+    view.fields.push_back(desc);
   }
   view.data = msg.data().data();
   view.size = msg.data().size();
+  // The core's rules (x/y/z present and float, little endian, rows and data large enough).
+  const std::string layout = ValidateCloudLayout(view);
+  if (!layout.empty()) return fail(layout);
+  // More data than the header declares is as inconsistent as less: one of them is wrong, and
+  // reading the declared part could be reading the wrong points.
+  const uint64_t row_step =
+      msg.row_step() == 0 ? static_cast<uint64_t>(msg.width()) * msg.point_step() : msg.row_step();
+  const uint64_t declared = row_step * msg.height();
+  if (view.size != declared) {
+    return fail("size mismatch: " + std::to_string(view.size) + " bytes of data, header declares " +
+                std::to_string(declared) + " (height " + std::to_string(msg.height()) +
+                " x row_step " + std::to_string(row_step) + ")");
+  }
   return view;
 }
 
@@ -61,6 +96,28 @@ std::optional<ImuSample> ToImuSample(const sensor_msgs::msg::Imu& msg, std::stri
   s.linear_acceleration = Eigen::Vector3d(a.x(), a.y(), a.z());
   if (!s.angular_velocity.allFinite() || !s.linear_acceleration.allFinite()) {
     if (error) *error = "IMU sample has non-finite angular velocity or acceleration";
+    return std::nullopt;
+  }
+  // An uninitialized message (driver start-up, a zeroed struct): no real accelerometer reads
+  // exactly zero on all axes while its gyro also does, and stamp 0 would end the static start.
+  if (s.angular_velocity.isZero(0.0) && s.linear_acceleration.isZero(0.0)) {
+    if (error) *error = "IMU sample is all zeros (uninitialized message?)";
+    return std::nullopt;
+  }
+  if (!(s.stamp_s > 0.0)) {
+    if (error) *error = "IMU sample has stamp " + std::to_string(s.stamp_s) + " (unset clock?)";
+    return std::nullopt;
+  }
+  // One integrated sample beyond any robot IMU's full scale (+-2000 deg/s, +-16 g; a few high-g
+  // parts reach 20 g) corrupts velocity and attitude for good: refuse it.
+  if (s.angular_velocity.cwiseAbs().maxCoeff() > kImuMaxAngularVelocity ||
+      s.linear_acceleration.cwiseAbs().maxCoeff() > kImuMaxAcceleration) {
+    std::ostringstream os;
+    os << "IMU sample beyond any IMU's range (|w|max " << s.angular_velocity.cwiseAbs().maxCoeff()
+       << " rad/s, limit " << kImuMaxAngularVelocity << "; |a|max "
+       << s.linear_acceleration.cwiseAbs().maxCoeff() << " m/s^2, limit " << kImuMaxAcceleration
+       << ")";
+    if (error) *error = os.str();
     return std::nullopt;
   }
   return s;

@@ -73,8 +73,9 @@ TEST(Cdr, RejectsUnknownEncapsulationAndTinyPayload) {
 
 TEST(Cdr, RejectsAbsurdSequenceLengthWithoutCrashing) {
   auto payload = EncodeCdr(MakeCloud(2));
-  // The fields sequence length sits after the header (stamp 8 + string 4+9 -> pad) and height/width.
-  // Corrupt every 4-byte word in turn to a huge count: decoding must fail cleanly, never crash.
+  // The fields sequence length sits after the header (stamp 8 + string 4+9 -> pad) and
+  // height/width. Corrupt every 4-byte word in turn to a huge count: decoding must fail cleanly,
+  // never crash.
   for (size_t off = 4; off + 4 <= payload.size(); off += 4) {
     auto bad = payload;
     bad[off] = bad[off + 1] = bad[off + 2] = 0xff;
@@ -119,6 +120,77 @@ TEST(Convert, CloudWithUnknownDatatypeIsRejected) {
   std::string error;
   EXPECT_FALSE(ToCloudView(cloud, &error).has_value());
   EXPECT_NE(error.find("'z'"), std::string::npos) << error;
+}
+
+// Layouts a reader cannot trust, each refused with the reason (issue 12, hostile inputs).
+TEST(Convert, InconsistentCloudLayoutsAreRejectedWithTheReason) {
+  auto expect_rejected = [](const sensor_msgs::msg::PointCloud2& c, const std::string& reason) {
+    std::string error;
+    EXPECT_FALSE(ToCloudView(c, &error).has_value()) << reason;
+    EXPECT_NE(error.find(reason), std::string::npos) << error;
+  };
+  auto c = MakeCloud(10);
+  c.fields()[3].name("x");
+  expect_rejected(c, "duplicate field 'x'");
+  c = MakeCloud(10);
+  c.fields()[3].offset(18);  // intensity (float32) would end at byte 22 of a 20-byte point
+  expect_rejected(c, "field 'intensity' (offset 18, 4 bytes) lies beyond point_step 20");
+  c = MakeCloud(10);
+  c.fields()[4].count(2);  // t (uint32) x2 from offset 16
+  expect_rejected(c, "field 't' (offset 16, 8 bytes) lies beyond point_step 20");
+  c = MakeCloud(10);
+  c.data().resize(c.data().size() + 20);
+  expect_rejected(c, "size mismatch: 220 bytes of data, header declares 200");
+  c = MakeCloud(10);
+  c.data().resize(c.data().size() - 1);
+  expect_rejected(c, "size mismatch: 199 bytes for 10x1 points of 20 bytes (need 200)");
+  c = MakeCloud(10);
+  c.row_step(100);
+  expect_rejected(c, "row_step 100 < width * point_step 200");
+  c = MakeCloud(10);
+  c.is_bigendian(true);
+  expect_rejected(c, "big-endian");
+  c = MakeCloud(10);
+  c.fields().erase(c.fields().begin() + 1);
+  expect_rejected(c, "lacks an x, y or z field");
+  // Organized (2 rows of 5) and empty clouds are fine.
+  c = MakeCloud(10);
+  c.height(2);
+  c.width(5);
+  c.row_step(100);
+  EXPECT_TRUE(ToCloudView(c).has_value());
+  c = MakeCloud(0);
+  EXPECT_TRUE(ToCloudView(c).has_value());
+}
+
+TEST(Convert, ImplausibleImuSamplesAreRejected) {
+  ImuSample s;
+  s.stamp_s = 100.25;
+  s.angular_velocity = {0.1, -0.2, 0.3};
+  s.linear_acceleration = {0.0, 0.5, 9.81};
+  std::string error;
+  auto msg = ToImuMsg(s, "imu");
+  ASSERT_TRUE(ToImuSample(msg, &error).has_value()) << error;
+  auto absurd = msg;
+  absurd.linear_acceleration().z(1e6);
+  EXPECT_FALSE(ToImuSample(absurd, &error).has_value());
+  EXPECT_NE(error.find("beyond any IMU's range"), std::string::npos) << error;
+  absurd = msg;
+  absurd.angular_velocity().x(-41.0);
+  EXPECT_FALSE(ToImuSample(absurd, &error).has_value());
+  auto zeros = ToImuMsg(ImuSample{}, "imu");
+  zeros.header().stamp(msg.header().stamp());
+  EXPECT_FALSE(ToImuSample(zeros, &error).has_value());
+  EXPECT_NE(error.find("all zeros"), std::string::npos) << error;
+  auto unstamped = msg;
+  unstamped.header().stamp(TimeFromNanoseconds(0));
+  EXPECT_FALSE(ToImuSample(unstamped, &error).has_value());
+  EXPECT_NE(error.find("stamp 0"), std::string::npos) << error;
+  // At the limits, still accepted (a hard but real manoeuvre).
+  auto hard = msg;
+  hard.angular_velocity().z(kImuMaxAngularVelocity);
+  hard.linear_acceleration().x(-kImuMaxAcceleration);
+  EXPECT_TRUE(ToImuSample(hard, &error).has_value()) << error;
 }
 
 TEST(Convert, ImuRoundTripAndNanRejected) {
@@ -168,7 +240,7 @@ TEST(SkeletonPlanes, MarkerGeometryFromTheInlierScatter) {
   EXPECT_DOUBLE_EQ(m.offset(), 5.0);
   EXPECT_NEAR(m.size().x(), 4.0 * sy, 1e-9);  // major axis: the 20 m direction
   EXPECT_NEAR(m.size().y(), 4.0 * sz, 1e-9);
-  EXPECT_NEAR(m.size().z(), sx, 1e-9);        // RMS thickness
+  EXPECT_NEAR(m.size().z(), sx, 1e-9);  // RMS thickness
   const Eigen::Quaterniond q(m.orientation().w(), m.orientation().x(), m.orientation().y(),
                              m.orientation().z());
   const Eigen::Matrix3d R = q.toRotationMatrix();

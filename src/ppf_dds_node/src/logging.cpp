@@ -43,6 +43,8 @@ void RateLimitedLog::Log(Level level, const std::string& message) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (logged_once_ && std::chrono::duration<double>(now - last_).count() < interval_s_) {
       ++suppressed_;
+      suppressed_level_ = level;
+      suppressed_message_ = message;
       return;
     }
     logged_once_ = true;
@@ -53,6 +55,23 @@ void RateLimitedLog::Log(Level level, const std::string& message) {
   ppf::dds::Log(level, suppressed == 0 ? message
                                        : message + " (+" + std::to_string(suppressed) +
                                              " similar since the last line)");
+}
+
+void RateLimitedLog::Flush() {
+  uint64_t suppressed = 0;
+  Level level;
+  std::string message;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (suppressed_ == 0) return;
+    suppressed = suppressed_;
+    suppressed_ = 0;
+    level = suppressed_level_;
+    message.swap(suppressed_message_);
+    last_ = std::chrono::steady_clock::now();
+  }
+  ppf::dds::Log(
+      level, "(+" + std::to_string(suppressed) + " similar since the last line) last: " + message);
 }
 
 }  // namespace ppf::dds

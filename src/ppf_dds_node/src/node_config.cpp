@@ -34,8 +34,9 @@ bool KeyName(const YAML::Node& key, const std::string& path, std::string* name,
              NodeConfigReport* report) {
   if (!key.IsScalar()) {
     report->ok = false;
-    report->error = "config key " + (path.empty() ? std::string("at the top level") :
-                                     "in section '" + path.substr(0, path.size() - 1) + "'") +
+    report->error = "config key " +
+                    (path.empty() ? std::string("at the top level")
+                                  : "in section '" + path.substr(0, path.size() - 1) + "'") +
                     " is a list or a map; keys must be plain names";
     return false;
   }
@@ -169,10 +170,11 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
     Read(outputs, "outputs", "skeleton_planes", &c->publish_skeleton_planes, &r);
     Read(outputs, "outputs", "registered_points", &c->publish_registered_points, &r);
   }
-  YAML::Node queues = section("queues", {"scan_capacity", "imu_capacity"});
+  YAML::Node queues = section("queues", {"scan_capacity", "imu_capacity", "max_cloud_points"});
   if (queues) {
     Read(queues, "queues", "scan_capacity", &c->scan_queue_capacity, &r);
     Read(queues, "queues", "imu_capacity", &c->imu_queue_capacity, &r);
+    Read(queues, "queues", "max_cloud_points", &c->max_cloud_points, &r);
   }
   YAML::Node core = section("core", {"config_file", "calibration_file", "mode", "omp_wait_policy"});
   if (core) {
@@ -210,6 +212,7 @@ NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* c) {
   clamp_min(&c->path_max_poses, 1, "outputs.path_max_poses");
   clamp_min(&c->scan_queue_capacity, 1, "queues.scan_capacity");
   clamp_min(&c->imu_queue_capacity, 100, "queues.imu_capacity");
+  clamp_min(&c->max_cloud_points, 1, "queues.max_cloud_points");
   if (!(c->diagnostics_period_s > 0.0)) {
     r.warnings.push_back("diagnostics.period_s must be > 0: using 5");
     c->diagnostics_period_s = 5.0;

@@ -120,7 +120,17 @@ struct PpfNode::Impl {
         scan_queue(static_cast<size_t>(c.scan_queue_capacity)),
         imu_queue(static_cast<size_t>(c.imu_queue_capacity)),
         malformed_log(c.malformed_log_interval_s),
-        drop_log(c.malformed_log_interval_s) {}
+        imu_malformed_log(c.malformed_log_interval_s),
+        drop_log(c.malformed_log_interval_s),
+        empty_log(c.malformed_log_interval_s),
+        large_log(c.malformed_log_interval_s),
+        stamp_log(c.malformed_log_interval_s),
+        nonfinite_log(c.malformed_log_interval_s),
+        jump_log(c.malformed_log_interval_s),
+        late_log(c.malformed_log_interval_s),
+        imu_late_log(c.malformed_log_interval_s),
+        imu_dup_log(c.malformed_log_interval_s),
+        outlier_log(c.malformed_log_interval_s) {}
 
   // ---- listeners (DDS threads) ----------------------------------------------------------------
   class CloudListener : public fdds::DataReaderListener {
@@ -188,6 +198,12 @@ struct PpfNode::Impl {
         std::lock_guard<std::mutex> lock(stats_mutex);
         ++summary.scans_received;
       }
+      // Size first: a cloud declaring more points than the bound is refused before anything
+      // looks at its data.
+      if (sample.valid && !CheckCloudSize(*buffer)) {
+        ReturnToPool(buffer.release());
+        continue;
+      }
       std::string error;
       if (sample.valid) {
         if (!bridge::ToCloudView(*buffer, &error)) sample.valid = false;
@@ -207,6 +223,10 @@ struct PpfNode::Impl {
         continue;
       }
       const double stamp = bridge::ToSeconds(buffer->header().stamp());
+      if (!CheckCloudUsable(*buffer, stamp)) {
+        ReturnToPool(buffer.release());
+        continue;
+      }
       std::shared_ptr<sensor_msgs::msg::PointCloud2> msg(
           buffer.release(), [this](sensor_msgs::msg::PointCloud2* m) { ReturnToPool(m); });
       auto pushed = scan_queue.Push(
@@ -216,8 +236,10 @@ struct PpfNode::Impl {
           std::lock_guard<std::mutex> lock(stats_mutex);
           ++summary.time_jumps;
         }
-        jump_log.Log(Level::kWarn, "scan time jumped back to " + std::to_string(stamp) +
-                                       " (bag loop? clock reset?): passed on, the core resets");
+        jump_log.Log(Level::kWarn,
+                     "scan time jumped back to " + std::to_string(stamp) +
+                         " (bag loop? clock reset? a stale scan?): the core restarts only if "
+                         "the IMU stream jumps back too, otherwise the scan is dropped as late");
       }
       if (pushed.evicted) {
         {
@@ -230,6 +252,46 @@ struct PpfNode::Impl {
                          ")");
       }
     }
+  }
+
+  bool CheckCloudSize(const sensor_msgs::msg::PointCloud2& m) {
+    const uint64_t n = static_cast<uint64_t>(m.width()) * m.height();
+    if (n <= static_cast<uint64_t>(config.max_cloud_points)) return true;
+    {
+      std::lock_guard<std::mutex> lock(stats_mutex);
+      ++summary.scans_too_large;
+    }
+    large_log.Log(Level::kWarn, std::to_string(n) + "-point PointCloud2 on " +
+                                    RosTopicToDds(config.points_topic) +
+                                    " exceeds queues.max_cloud_points " +
+                                    std::to_string(config.max_cloud_points) + ": skipped");
+    return false;
+  }
+
+  // Well-formed clouds the core cannot use (listener thread). Refused here, before the scan queue:
+  // queued, they would evict good scans, and their stamps would move the queue's timeline.
+  bool CheckCloudUsable(const sensor_msgs::msg::PointCloud2& m, double stamp) {
+    const uint64_t n = static_cast<uint64_t>(m.width()) * m.height();
+    const std::string on = " PointCloud2 on " + RosTopicToDds(config.points_topic);
+    if (n == 0) {
+      {
+        std::lock_guard<std::mutex> lock(stats_mutex);
+        ++summary.scans_empty;
+      }
+      empty_log.Log(Level::kWarn, "empty" + on + " (stamp " + std::to_string(stamp) +
+                                      "): nothing to register, skipped");
+      return false;
+    }
+    if (!(stamp > 0.0)) {
+      {
+        std::lock_guard<std::mutex> lock(stats_mutex);
+        ++summary.scans_bad_stamp;
+      }
+      stamp_log.Log(Level::kWarn, on.substr(1) + " has stamp " + std::to_string(stamp) +
+                                      " (unset clock?): skipped");
+      return false;
+    }
+    return true;
   }
 
   void OnImu(fdds::DataReader* reader) {
@@ -269,8 +331,8 @@ struct PpfNode::Impl {
           ++summary.imu_received;
           ++summary.imu_malformed;
         }
-        malformed_log.Log(Level::kWarn, "rejected malformed Imu on " +
-                                            RosTopicToDds(config.imu_topic) + ": " + error);
+        imu_malformed_log.Log(Level::kWarn, "rejected malformed Imu on " +
+                                                RosTopicToDds(config.imu_topic) + ": " + error);
         continue;
       }
       auto pushed = imu_queue.Push(imu->stamp_s, ImuItem{*imu});
@@ -280,7 +342,8 @@ struct PpfNode::Impl {
       if (pushed.time_jump) {
         ++summary.time_jumps;
         jump_log.Log(Level::kWarn, "IMU time jumped back to " + std::to_string(imu->stamp_s) +
-                                       " (bag loop? clock reset?): passed on, the core resets");
+                                       " (bag loop? clock reset? an outlier?): the core restarts "
+                                       "once the following samples continue from there");
       }
       if (pushed.evicted) {
         ++summary.imu_overflow;
@@ -316,6 +379,7 @@ struct PpfNode::Impl {
         for (auto& [stamp, item] : imus) FeedImu(item.sample);
       }
       if (draining && scan_queue.Size() == 0 && imu_queue.Size() == 0) {
+        DropImuCandidates();                  // the stream ended before confirming them
         if (!pending.empty()) RunCore(true);  // remaining scans, IMU extrapolated
         break;
       }
@@ -342,41 +406,120 @@ struct PpfNode::Impl {
     Log(Level::kWarn, why + ": core restarted (initialization starts over)");
   }
 
+  // An IMU stamp more than kJumpS off the stream (back or ahead) is only believed once the next
+  // kConfirmSamples samples continue from it: a bag loop or a clock reset restarts the core, a
+  // real gap reaches the core (which resets on gaps > max_imu_gap), and a single bad stamp is
+  // dropped instead of throwing away the filter and its map.
+  static constexpr size_t kConfirmSamples = 5;
+
   void FeedImu(const ImuSample& s) {
-    if (s.stamp_s < last_imu_fed - kJumpS) {
-      // Scans of the old timeline still queued (IMU is fed before scans) are finished first.
-      while (auto old =
-                 scan_queue.PopFrontIf([&](double stamp) { return stamp > s.stamp_s + kJumpS; })) {
-        if (AcceptScanStamp(old->first)) AddScan(std::move(old->second));
+    const bool have = std::isfinite(last_imu_fed);
+    const bool back = have && s.stamp_s < last_imu_fed - kJumpS;
+    const bool ahead = have && s.stamp_s > last_imu_fed + kJumpS;
+    if (back || ahead) {
+      if (!imu_candidates.empty() && !(s.stamp_s > imu_candidates.back().stamp_s &&
+                                       s.stamp_s <= imu_candidates.back().stamp_s + kJumpS)) {
+        DropImuCandidates();
       }
-      RestartCore("IMU time jumped back by " + std::to_string(last_imu_fed - s.stamp_s) + " s");
-    } else if (s.stamp_s <= last_imu_fed) {
+      imu_candidates.push_back(s);
+      if (imu_candidates.size() < kConfirmSamples) return;
+      std::vector<ImuSample> confirmed;
+      confirmed.swap(imu_candidates);
+      const double first = confirmed.front().stamp_s;
+      if (back) {
+        // Scans of the old timeline still queued (IMU is fed before scans) are finished first.
+        while (auto old =
+                   scan_queue.PopFrontIf([&](double stamp) { return stamp > first + kJumpS; })) {
+          if (AcceptScanStamp(old->first)) AddScan(std::move(old->second));
+        }
+        RestartCore("IMU time jumped back by " + std::to_string(last_imu_fed - first) + " s");
+      } else {
+        Log(Level::kWarn, "IMU stream resumed after " + std::to_string(first - last_imu_fed) +
+                              " s without samples (last at " + std::to_string(last_imu_fed) + ")");
+      }
+      for (const ImuSample& c : confirmed) AddImuToCore(c);
+      return;
+    }
+    // The stream went on where it was: what waited for confirmation was an outlier.
+    if (!imu_candidates.empty()) DropImuCandidates();
+    if (have && s.stamp_s == last_imu_fed) {
+      {
+        std::lock_guard<std::mutex> lock(stats_mutex);
+        ++summary.imu_duplicate;
+      }
+      imu_dup_log.Log(Level::kError, "IMU sample at " + std::to_string(s.stamp_s) +
+                                         " has the stamp of the sample before it (duplicate): "
+                                         "dropped");
+      return;
+    }
+    if (have && s.stamp_s < last_imu_fed) {
       {
         std::lock_guard<std::mutex> lock(stats_mutex);
         ++summary.imu_late;
       }
-      Log(Level::kError, "IMU sample at " + std::to_string(s.stamp_s) +
-                             " arrived after newer ones were integrated: dropped");
+      imu_late_log.Log(Level::kError, "IMU sample at " + std::to_string(s.stamp_s) +
+                                          " arrived after newer ones were integrated: dropped");
       return;
     }
+    AddImuToCore(s);
+  }
+
+  void AddImuToCore(const ImuSample& s) {
     core->AddImu(s);
     last_imu_fed = s.stamp_s;
     last_gyro = s.angular_velocity;
   }
 
+  void DropImuCandidates() {
+    if (imu_candidates.empty()) return;
+    const size_t n = imu_candidates.size();
+    const double off = imu_candidates.front().stamp_s - last_imu_fed;
+    {
+      std::lock_guard<std::mutex> lock(stats_mutex);
+      summary.imu_outliers += n;
+    }
+    outlier_log.Log(Level::kError, "dropped " + std::to_string(n) + " IMU sample(s) stamped " +
+                                       std::to_string(imu_candidates.front().stamp_s) + ", " +
+                                       std::to_string(std::abs(off)) + " s " +
+                                       (off < 0 ? "behind" : "ahead of") +
+                                       " the stream, which went on at " +
+                                       std::to_string(last_imu_fed) + ": outlier stamp");
+    imu_candidates.clear();
+  }
+
+  // Scans are fed in time order, each newer than the last. A scan older than that is dropped,
+  // however far back: only the IMU stream jumping back too (FeedImu) restarts the core, so a
+  // single stale or misstamped scan cannot reset a moving robot's filter. A scan far ahead of
+  // the IMU stream has a broken stamp (or the IMU fell silent): it would make every later scan
+  // look late.
+  static constexpr double kScanAheadS = 5.0;
+
   bool AcceptScanStamp(double stamp) {
-    if (stamp < last_scan_fed - kJumpS) {
-      RestartCore("scan time jumped back by " + std::to_string(last_scan_fed - stamp) + " s");
-    } else if (stamp <= last_scan_fed) {
+    const bool have_imu = std::isfinite(last_imu_fed);
+    if (have_imu && stamp > last_imu_fed + kScanAheadS) {
+      {
+        std::lock_guard<std::mutex> lock(stats_mutex);
+        ++summary.scans_bad_stamp;
+      }
+      stamp_log.Log(Level::kWarn, "scan at " + std::to_string(stamp) + " is " +
+                                      std::to_string(stamp - last_imu_fed) +
+                                      " s ahead of the IMU stream (far-future stamp, or the IMU "
+                                      "fell silent): skipped");
+      return false;
+    }
+    if (stamp <= last_scan_fed) {
       {
         std::lock_guard<std::mutex> lock(stats_mutex);
         ++summary.scans_late;
       }
-      late_log.Log(Level::kWarn, "scan at " + std::to_string(stamp) +
-                                     " is not newer than the last processed one: dropped");
+      late_log.Log(Level::kWarn, "scan at " + std::to_string(stamp) + " is " +
+                                     std::to_string(last_scan_fed - stamp) +
+                                     " s older than the last processed one: dropped");
       return false;
     }
-    last_scan_fed = stamp;
+    // Before the first IMU sample the core only collects (initializing): such a scan does not
+    // set the order, so a misstamped one cannot make the following scans late.
+    if (have_imu) last_scan_fed = stamp;
     return true;
   }
 
@@ -432,6 +575,13 @@ struct PpfNode::Impl {
       if (r.status == Status::kInitializing) ++summary.scans_initializing;
       if (r.status == Status::kReset) ++summary.resets;
       if (r.status == Status::kDegenerate) ++summary.degenerate;
+      summary.points_nonfinite += r.dropped_nan;
+    }
+    if (r.dropped_nan > 0) {
+      nonfinite_log.Log(Level::kWarn, "scan at " + std::to_string(r.scan_begin_s) + ": " +
+                                          std::to_string(r.dropped_nan) + " of " +
+                                          std::to_string(r.input_points) +
+                                          " points non-finite (NaN/Inf), dropped");
     }
     if (r.status == Status::kRejected || r.status == Status::kReset) {
       status_log.Log(Level::kWarn, std::string("core: ") + StatusName(r.status) + ": " + r.reason);
@@ -586,7 +736,16 @@ struct PpfNode::Impl {
     return s;
   }
 
+  void FlushInputLogs() {
+    for (RateLimitedLog* l : {&malformed_log, &imu_malformed_log, &drop_log, &empty_log, &large_log,
+                              &stamp_log, &nonfinite_log, &status_log, &lost_log, &jump_log,
+                              &late_log, &imu_late_log, &imu_dup_log, &outlier_log}) {
+      l->Flush();
+    }
+  }
+
   void LogPeriodic(size_t* latency_mark) {
+    FlushInputLogs();
     NodeSummary s;
     double lat50, lat99, ovh99;
     size_t n;
@@ -645,17 +804,20 @@ struct PpfNode::Impl {
   // Executor-thread state.
   double last_imu_fed = -std::numeric_limits<double>::infinity();
   double last_scan_fed = -std::numeric_limits<double>::infinity();
+  std::vector<ImuSample> imu_candidates;  // off the timeline, waiting for confirmation
   std::deque<PendingScan> pending;
   Eigen::Vector3d last_gyro = Eigen::Vector3d::Zero();
   nav_msgs::msg::Path path;
   std::vector<ScanResult> trajectory;
 
   RateLimitedLog malformed_log;
+  RateLimitedLog imu_malformed_log;
   RateLimitedLog drop_log;
+  RateLimitedLog empty_log, large_log, stamp_log, nonfinite_log;
   RateLimitedLog status_log{1.0};
-  RateLimitedLog jump_log{1.0};
   RateLimitedLog lost_log{1.0};
-  RateLimitedLog late_log{1.0};
+  // Input defects, one limiter per kind so that one kind's burst does not hide another's line.
+  RateLimitedLog jump_log, late_log, imu_late_log, imu_dup_log, outlier_log;
   GapCounter cloud_gaps, imu_gaps;  // each used by its reader's listener only
 
   mutable std::mutex stats_mutex;
@@ -809,6 +971,7 @@ void PpfNode::run() {
   m.drain_requested = true;
   m.scan_queue.Notify();
   executor.join();
+  m.FlushInputLogs();  // the counts of bursts no later line reported
   if (!m.config.tum_file.empty()) {
     std::string error;
     if (m.WriteTum(&error)) {
@@ -844,6 +1007,9 @@ std::string PpfNode::FormatSummary(const NodeSummary& s) {
     << " imu_overflow=" << s.imu_overflow << " imu_out_of_order=" << s.imu_out_of_order
     << " time_jumps=" << s.time_jumps << " scans_late=" << s.scans_late
     << " imu_late=" << s.imu_late << " scans_lost=" << s.scans_lost << " imu_lost=" << s.imu_lost
+    << " scans_empty=" << s.scans_empty << " scans_too_large=" << s.scans_too_large
+    << " scans_bad_stamp=" << s.scans_bad_stamp << " points_nonfinite=" << s.points_nonfinite
+    << " imu_duplicate=" << s.imu_duplicate << " imu_outliers=" << s.imu_outliers
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

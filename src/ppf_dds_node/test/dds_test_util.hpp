@@ -1,14 +1,21 @@
 // Test-side DDS endpoints: a participant on the test profile, typed writers that report matches,
-// and readers that collect every sample with its receive time. Includers define
-// PPF_DDS_CONFIG_DIR (config/dds of the workspace).
+// and readers that collect every sample with its receive time; and the steps every cross-process
+// test repeats (simulate a sequence, stop a node and read its summary, read a log). Includers
+// define PPF_DDS_CONFIG_DIR (config/dds of the workspace).
 #pragma once
 
 #include <stdlib.h>
 
+#include <gtest/gtest.h>
+
 #include <atomic>
 #include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
 #include <memory>
 #include <mutex>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -23,6 +30,7 @@
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include "child_process.hpp"
 #include "ppf_dds_node/dds_common.hpp"
 
 namespace ppf::test {
@@ -137,6 +145,63 @@ inline double SummaryField(const std::string& line, const std::string& key) {
   const size_t p = line.find(" " + key + "=");
   if (p == std::string::npos) return std::nan("");
   return std::atof(line.c_str() + p + key.size() + 2);
+}
+
+// Runs `sim` (ppf_sim) with `args` + "--out <bag>", stderr to `log`; success = exit 0 in 120 s.
+inline ::testing::AssertionResult SimulateSequence(const std::string& sim,
+                                                   std::vector<std::string> args,
+                                                   const std::string& bag, const std::string& log) {
+  if (sim.empty()) return ::testing::AssertionFailure() << "ppf_sim not found";
+  args.insert(args.begin(), sim);
+  args.push_back("--out");
+  args.push_back(bag);
+  ChildProcess gen;
+  if (!gen.Start(args, {}, log)) return ::testing::AssertionFailure() << "cannot start " << sim;
+  if (!ExitedWith(gen.Wait(std::chrono::seconds(120)), 0)) {
+    return ::testing::AssertionFailure() << "ppf_sim failed, see " << log;
+  }
+  return ::testing::AssertionSuccess();
+}
+
+// Stops a running ppf_node with `signal` (it drains, flushes and reports), reads its
+// PPF_NODE_SUMMARY line and expects exit status 0.
+inline ::testing::AssertionResult StopNodeAndReadSummary(ChildProcess& node, std::string* summary,
+                                                         int signal = SIGINT) {
+  node.Signal(signal);
+  if (!node.WaitForLine("PPF_NODE_SUMMARY", summary, std::chrono::seconds(30))) {
+    return ::testing::AssertionFailure() << "no PPF_NODE_SUMMARY within 30 s of the signal";
+  }
+  const int status = node.Wait(std::chrono::seconds(10));
+  if (!ExitedWith(status, 0)) {
+    return ::testing::AssertionFailure() << "ppf_node exit status " << status << " (want 0)";
+  }
+  return ::testing::AssertionSuccess();
+}
+
+inline std::string ReadTextFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Lines of `text` containing `needle`.
+inline int CountLinesWith(const std::string& text, const std::string& needle) {
+  std::stringstream ss(text);
+  std::string line;
+  int n = 0;
+  while (std::getline(ss, line)) n += line.find(needle) != std::string::npos;
+  return n;
+}
+
+// A "Vm...:" field of /proc/<pid>/status in kB (VmRSS, VmHWM), -1 if unreadable.
+inline long ProcStatusKb(pid_t pid, const std::string& field) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(field + ":", 0) == 0) return std::atol(line.c_str() + field.size() + 1);
+  }
+  return -1;
 }
 
 }  // namespace ppf::test

@@ -24,13 +24,6 @@ using ppf::test::SummaryField;
 
 namespace {
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 class AsDocumented : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -41,11 +34,10 @@ class AsDocumented : public ::testing::Test {
     dir_ = ppf::test::TempDir("ppf_dds_documented");
     // 5 s of urban HDL-32 (the sensor): ~1.5 MB clouds, three times Fast DDS's default
     // shared-memory segment.
-    ChildProcess sim;
-    ASSERT_TRUE(sim.Start({sim_, "--scene", "urban", "--lidar", "hdl32", "--duration", "5",
-                           "--seed", "2", "--storage", "mcap", "--out", dir_ + "/bag"},
-                          {}, dir_ + "/sim.log"));
-    ASSERT_TRUE(ppf::test::ExitedWith(sim.Wait(60s), 0)) << "ppf_sim failed, see " << dir_;
+    ASSERT_TRUE(ppf::test::SimulateSequence(sim_,
+                                            {"--scene", "urban", "--lidar", "hdl32", "--duration",
+                                             "5", "--seed", "2", "--storage", "mcap"},
+                                            dir_ + "/bag", dir_ + "/sim.log"));
   }
   static void TearDownTestSuite() {
     if (!dir_.empty()) std::system(("rm -rf '" + dir_ + "/bag'").c_str());
@@ -83,14 +75,14 @@ TEST_F(AsDocumented, ReplayIntoNodeLosesNoCloudWithoutAProfileInTheEnvironment) 
   ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &line, 40s)) << "see " << dir << "/replay.log";
   EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
   // Each tool says which transport it chose (the project's profile, found on its own).
-  EXPECT_NE(ReadFile(dir + "/replay.log").find("shm_udp.xml (project default"), std::string::npos);
-  EXPECT_NE(ReadFile(dir + "/record.log").find("shm_udp.xml (project default"), std::string::npos);
+  EXPECT_NE(ppf::test::ReadTextFile(dir + "/replay.log").find("shm_udp.xml (project default"),
+            std::string::npos);
+  EXPECT_NE(ppf::test::ReadTextFile(dir + "/record.log").find("shm_udp.xml (project default"),
+            std::string::npos);
 
   std::this_thread::sleep_for(1500ms);  // the node works through what it has queued
-  node.Signal(SIGINT);
   std::string summary;
-  ASSERT_TRUE(node.WaitForLine("PPF_NODE_SUMMARY", &summary, 30s));
-  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 0));
+  ASSERT_TRUE(ppf::test::StopNodeAndReadSummary(node, &summary));
   record.Signal(SIGINT);
   std::string record_done;
   ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &record_done, 20s));
@@ -130,7 +122,7 @@ TEST(AsDocumentedConfig, NodeRefusesACorePresetAsItsConfig) {
   std::string line;
   EXPECT_FALSE(node.WaitForLine("PPF_NODE_READY", &line, 5s));
   EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 2));
-  const std::string err = ReadFile(log);
+  const std::string err = ppf::test::ReadTextFile(log);
   EXPECT_NE(err.find("not a ppf_node config"), std::string::npos) << err;
   EXPECT_NE(err.find("core.config_file"), std::string::npos) << err;
 }

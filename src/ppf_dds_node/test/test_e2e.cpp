@@ -30,15 +30,6 @@ using ppf::test::SummaryField;
 
 namespace {
 
-long VmRssKb(pid_t pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind("VmRSS:", 0) == 0) return std::atol(line.c_str() + 6);
-  }
-  return -1;
-}
-
 // /odometry of a recorded bag as a TUM file (stamp = header stamp, pose = pose.pose).
 size_t OdometryBagToTum(const std::string& bag, const std::string& tum, std::string* frames) {
   ppf::bag::Reader reader(bag);
@@ -92,7 +83,8 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   {
     std::ofstream cfg(dir + "/node.yaml");
     cfg << "dds: {domain_id: " << domain << ", profiles_file: \"" << kProfiles
-        << "\", profile_name: " << kProfile << "}\n"
+        << "\", profile_name: " << kProfile
+        << "}\n"
         // The simulated robot's calibration (non-identity T_imu_lidar) over the LiDAR preset.
         << "core: {config_file: \"" << PPF_CONFIG_DIR << "/hdl32.yaml\", calibration_file: \""
         << bag << "/calibration.yaml\"}\n"
@@ -120,7 +112,7 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   const auto deadline = std::chrono::steady_clock::now() + 60s;
   bool done = false;
   while (!done && std::chrono::steady_clock::now() < deadline) {
-    out->max_rss_kb = std::max(out->max_rss_kb, VmRssKb(node.pid()));
+    out->max_rss_kb = std::max(out->max_rss_kb, ppf::test::ProcStatusKb(node.pid(), "VmRSS"));
     done = replay.WaitForLine("PPF_REPLAY_DONE", &line, 100ms);
   }
   ASSERT_TRUE(done) << "replay did not finish";
@@ -128,12 +120,10 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
   // The node works through what it has queued; give it a moment, then stop it as a user would.
   for (int i = 0; i < 20; ++i) {
-    out->max_rss_kb = std::max(out->max_rss_kb, VmRssKb(node.pid()));
+    out->max_rss_kb = std::max(out->max_rss_kb, ppf::test::ProcStatusKb(node.pid(), "VmRSS"));
     std::this_thread::sleep_for(100ms);
   }
-  node.Signal(stop_signal);
-  ASSERT_TRUE(node.WaitForLine("PPF_NODE_SUMMARY", &out->summary, 30s));
-  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 0));
+  ASSERT_TRUE(ppf::test::StopNodeAndReadSummary(node, &out->summary, stop_signal));
   record.Signal(SIGINT);
   ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &out->record_done, 20s));
   EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
@@ -151,11 +141,10 @@ class EndToEnd : public ::testing::Test {
     dir_ = ppf::test::TempDir("ppf_dds_e2e");
     // Urban, car, HDL-32, 10 s (2.5 s static start for initialization): a sequence of the
     // core's accuracy suite (ppf_tools test_accuracy, bound 0.5 % of the path).
-    ChildProcess sim;
-    ASSERT_TRUE(sim.Start({sim_, "--scene", "urban", "--lidar", "hdl32", "--duration", "10",
-                           "--seed", "1", "--storage", "mcap", "--out", dir_ + "/bag"},
-                          {}, dir_ + "/sim.log"));
-    ASSERT_TRUE(ppf::test::ExitedWith(sim.Wait(60s), 0)) << "ppf_sim failed, see " << dir_;
+    ASSERT_TRUE(ppf::test::SimulateSequence(sim_,
+                                            {"--scene", "urban", "--lidar", "hdl32", "--duration",
+                                             "10", "--seed", "1", "--storage", "mcap"},
+                                            dir_ + "/bag", dir_ + "/sim.log"));
   }
   void SetUp() override {
     if (sim_.empty()) GTEST_SKIP() << "ppf_sim not found (PATH or configure time): build ppf_sim";

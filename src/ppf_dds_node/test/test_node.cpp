@@ -89,9 +89,7 @@ void StartNode(ChildProcess& node, const std::string& dir, int domain, const std
 
 // SIGINT; the node prints its summary (returned in *summary, echoed to the test log) and exits 0.
 void StopNode(ChildProcess& node, std::string* summary) {
-  node.Signal(SIGINT);
-  ASSERT_TRUE(node.WaitForLine("PPF_NODE_SUMMARY", summary, 30s));
-  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 0));
+  ASSERT_TRUE(ppf::test::StopNodeAndReadSummary(node, summary));
   std::printf("%s\n", summary->c_str());
 }
 

@@ -1,6 +1,7 @@
 // In-process units of the node: config parsing and the hand-over queue.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -10,6 +11,7 @@
 #include "ppf_bridge/cdr_payload.hpp"
 #include "ppf_dds_node/gap_counter.hpp"
 #include "ppf_dds_node/latency_stats.hpp"
+#include "ppf_dds_node/logging.hpp"
 #include "ppf_dds_node/node_config.hpp"
 #include "ppf_dds_node/time_ordered_queue.hpp"
 
@@ -30,6 +32,36 @@ TEST(NodeConfig, EmptyYamlGivesDocumentedDefaults) {
   EXPECT_FALSE(c.publish_registered_points);
   EXPECT_TRUE(c.publish_tf);
   EXPECT_EQ(c.participant.domain_id, 0);
+  EXPECT_EQ(c.max_cloud_points, 4000000);
+}
+
+TEST(NodeConfig, MaxCloudPointsIsReadAndKeptPositive) {
+  NodeConfig c;
+  auto r = LoadNodeConfigString("queues: {max_cloud_points: 500000}\n", &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_TRUE(r.warnings.empty());
+  EXPECT_EQ(c.max_cloud_points, 500000);
+  r = LoadNodeConfigString("queues: {max_cloud_points: 0}\n", &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(c.max_cloud_points, 1);
+  ASSERT_EQ(r.warnings.size(), 1u);
+  EXPECT_NE(r.warnings[0].find("queues.max_cloud_points"), std::string::npos);
+}
+
+// A burst inside the interval prints its first line; the rest is counted and carried by the next
+// line, or by Flush() when no line follows (the tail of a burst was lost before Flush existed).
+TEST(RateLimitedLog, SuppressedLinesAreCountedAndFlushed) {
+  RateLimitedLog log(3600.0);
+  testing::internal::CaptureStderr();
+  for (int i = 0; i < 5; ++i) log.Log(Level::kWarn, "bad input " + std::to_string(i));
+  log.Flush();
+  log.Flush();  // nothing left: no line
+  const std::string out = testing::internal::GetCapturedStderr();
+  EXPECT_NE(out.find("[WARN] bad input 0\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("[WARN] (+4 similar since the last line) last: bad input 4\n"),
+            std::string::npos)
+      << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 2) << out;
 }
 
 TEST(NodeConfig, PartialSectionsKeepOtherDefaults) {

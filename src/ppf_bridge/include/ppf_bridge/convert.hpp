@@ -20,15 +20,26 @@ int64_t ToNanoseconds(const builtin_interfaces::msg::Time& t);
 builtin_interfaces::msg::Time TimeFromNanoseconds(int64_t ns);
 builtin_interfaces::msg::Time TimeFromSeconds(double s);
 
-// A view into `msg` (no copy of the point data): `msg` must outlive the view. Structural checks
-// (point_step vs fields, data size vs width*height*point_step) are the core's job, so that the
-// same rules hold for every input path; this only fails for layouts that cannot be described at
-// all (an unknown PointField datatype), with the reason in `error`.
+// A view into `msg` (no copy of the point data): `msg` must outlive the view. Fails, with the
+// reason in `error`, for a layout that cannot be read as declared: an unknown PointField datatype,
+// a duplicate field name, a field beyond point_step, data longer or shorter than height * row_step
+// (row_step 0 = width * point_step), and everything the core's ValidateCloudLayout refuses
+// (missing or non-float x/y/z, big-endian, row_step < width * point_step). The offline runner and
+// the DDS node both go through here, so one rule set holds for every input path. An empty cloud
+// is a valid view.
 std::optional<CloudView> ToCloudView(const sensor_msgs::msg::PointCloud2& msg,
                                      std::string* error = nullptr);
 
-// Rejects samples with non-finite values (a driver glitch must not poison the filter).
-std::optional<ImuSample> ToImuSample(const sensor_msgs::msg::Imu& msg, std::string* error = nullptr);
+// Largest |angular velocity| (rad/s) and |acceleration| (m/s^2) component accepted: above the
+// full scale of robot IMUs (+-2000 deg/s = 34.9 rad/s; +-16 g, some parts 20 g).
+inline constexpr double kImuMaxAngularVelocity = 40.0;
+inline constexpr double kImuMaxAcceleration = 200.0;
+
+// Rejects samples a driver glitch produces, so they never reach the filter: non-finite values,
+// all six values exactly zero (an uninitialized message), stamp <= 0, and values beyond the
+// limits above. The reason goes to `error`.
+std::optional<ImuSample> ToImuSample(const sensor_msgs::msg::Imu& msg,
+                                     std::string* error = nullptr);
 
 sensor_msgs::msg::Imu ToImuMsg(const ImuSample& sample, const std::string& frame_id);
 

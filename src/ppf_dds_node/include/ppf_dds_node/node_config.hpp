@@ -49,6 +49,9 @@ struct NodeConfig {
   int scan_queue_capacity = 4;
   // IMU samples waiting for the core: ~4 min at 400 Hz; exceeding it is logged as an error.
   int imu_queue_capacity = 100000;
+  // Larger clouds are refused in the listener (counted, logged): with the queue and the buffer
+  // pool this bounds the memory input can take. 4M points is >10x a 128-beam LiDAR's scan.
+  int max_cloud_points = 4000000;
 
   std::string core_config_file;
   // Layered after core_config_file: the robot's own calibration (T_imu_lidar), e.g. the

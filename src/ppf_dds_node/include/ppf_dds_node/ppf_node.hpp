@@ -40,6 +40,14 @@ struct NodeSummary {
   // loss, or the reader history overwrote them while the listener was descheduled).
   uint64_t scans_lost = 0;
   uint64_t imu_lost = 0;
+  uint64_t scans_empty = 0;       // well formed, no points: nothing to register, skipped
+  uint64_t scans_too_large = 0;   // more points than queues.max_cloud_points: skipped
+  uint64_t scans_bad_stamp = 0;   // stamp <= 0, or far ahead of the IMU stream: skipped
+  uint64_t points_nonfinite = 0;  // NaN/Inf points the core dropped from scans it processed
+  uint64_t imu_duplicate = 0;     // same stamp as the sample integrated before it: dropped
+  // Stamps off the stream's timeline (> 0.5 s back or ahead) that the following samples did
+  // not confirm: single outliers, dropped instead of restarting the filter.
+  uint64_t imu_outliers = 0;
   double latency_p50_ms = 0, latency_p99_ms = 0, latency_max_ms = 0;
   double core_p50_ms = 0, core_p99_ms = 0;
   // overhead = latency - core - imu_wait - behind_core: the node's own cost (decode, hand-over,

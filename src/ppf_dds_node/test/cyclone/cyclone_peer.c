@@ -6,6 +6,17 @@
  * Prints "READY" once all four endpoints matched, then "RESULT key=value ..." and exits 0; exits 1
  * on setup errors. Discovery follows CYCLONEDDS_URI (the test gives it the same peers as Fast DDS).
  *
+ * Options after the three positional arguments:
+ *   --hostile N      after the N-th cloud, inject one defect per cloud of the dump (cloud and IMU
+ *                    defects alternating: cloud_names, imu_names), ending with a burst of 30
+ *                    malformed clouds. A defect either follows a valid message (it must be
+ *                    refused, and the next valid scan must still give odometry) or replaces a
+ *                    cloud by a valid but unusual one (it must give odometry itself). Prints
+ *                    "HOSTILE name=..." per defect and at the end "HOSTILE_CHECK name=... scan=S
+ *                    odom=0|1": whether odometry arrived for the scan stamped S.
+ *   --imu-gap S L    send no IMU from S s to S+L s after the first message (clouds go on).
+ *   --max-points N   the replicated "several million points" cloud has about N points [2100000].
+ *
  * Dump format (little endian, written by test_cyclone from a ppf_sim bag): "PPFDUMP1", then records
  *   u8 kind (1 imu, 2 cloud), i64 bag time ns, i32 sec, u32 nanosec, str frame_id, then
  *   imu:   f64 orientation[4] (x y z w), f64 ori_cov[9], f64 gyro[3], f64 gyro_cov[9],
@@ -53,6 +64,8 @@ static char* rd_str(FILE* f) {
 typedef struct {
   int odom, odom_bad, odom_frames_bad, odom_not_monotonic, planes, planes_bad, planes_total;
   double last_odom_stamp;
+  double* stamps; /* every odometry stamp received, for the hostile checks */
+  int n_stamps, cap_stamps;
 } tally_t;
 
 static int finite_n(const double* v, int n) {
@@ -98,6 +111,11 @@ static void drain(dds_entity_t odom_reader, dds_entity_t planes_reader, tally_t*
       const double stamp = o->header.stamp.sec + 1e-9 * o->header.stamp.nanosec;
       if (stamp <= t->last_odom_stamp) t->odom_not_monotonic++;
       t->last_odom_stamp = stamp;
+      if (t->n_stamps == t->cap_stamps) {
+        t->cap_stamps = t->cap_stamps ? 2 * t->cap_stamps : 256;
+        t->stamps = (double*)realloc(t->stamps, (size_t)t->cap_stamps * sizeof(double));
+      }
+      t->stamps[t->n_stamps++] = stamp;
     }
     dds_return_loan(odom_reader, samples, n);
   }
@@ -124,6 +142,191 @@ static void drain(dds_entity_t odom_reader, dds_entity_t planes_reader, tally_t*
   }
 }
 
+/* ---- hostile mode ------------------------------------------------------------------------- */
+
+typedef sensor_msgs_msg_dds__PointCloud2_ cloud_t;
+typedef sensor_msgs_msg_dds__Imu_ imu_t;
+
+/* A copy the peer owns (field names, fields, data of data_bytes, zero-filled beyond the source). */
+static cloud_t clone_cloud(const cloud_t* m, uint32_t data_bytes) {
+  cloud_t c = *m;
+  c.fields._buffer = (sensor_msgs_msg_dds__PointField_*)calloc(
+      m->fields._length ? m->fields._length : 1, sizeof(sensor_msgs_msg_dds__PointField_));
+  for (uint32_t i = 0; i < m->fields._length; ++i) {
+    c.fields._buffer[i] = m->fields._buffer[i];
+    c.fields._buffer[i].name = strdup(m->fields._buffer[i].name);
+  }
+  c.data._buffer = (uint8_t*)calloc(data_bytes ? data_bytes : 1, 1);
+  memcpy(c.data._buffer, m->data._buffer,
+         data_bytes < m->data._length ? data_bytes : m->data._length);
+  c.data._length = c.data._maximum = data_bytes;
+  return c;
+}
+
+static void free_cloud(cloud_t* c) {
+  for (uint32_t i = 0; i < c->fields._length; ++i) free(c->fields._buffer[i].name);
+  free(c->fields._buffer);
+  free(c->data._buffer);
+}
+
+static sensor_msgs_msg_dds__PointField_* find_field(cloud_t* c, const char* name) {
+  for (uint32_t i = 0; i < c->fields._length; ++i)
+    if (strcmp(c->fields._buffer[i].name, name) == 0) return &c->fields._buffer[i];
+  return NULL;
+}
+
+/* Defects of a cloud, built from the valid cloud just sent (or in place of it: kReplace). */
+enum {
+  C_POINT_STEP_SMALL,
+  C_DATA_SHORT,
+  C_DATA_LONG,
+  C_ROW_STEP,
+  C_BIG_ENDIAN,
+  C_UNKNOWN_TYPE,
+  C_DUPLICATE_FIELD,
+  C_MISSING_XYZ,
+  C_OFFSET_BEYOND,
+  C_EMPTY,
+  C_STAMP_ZERO,
+  C_FAR_FUTURE,
+  C_STALE,
+  C_TOO_LARGE,
+  C_HUGE,
+  C_NAN_POINTS,
+  C_ORGANIZED,
+  C_BURST,
+  C_BURST_TAIL,
+  C_COUNT
+};
+static const char* const cloud_names[C_COUNT] = {
+    "point_step_small", "data_short",      "data_long",   "row_step",      "big_endian",
+    "unknown_type",     "duplicate_field", "missing_xyz", "offset_beyond", "empty",
+    "stamp_zero",       "far_future",      "stale",       "too_large",     "huge",
+    "nan_points",       "organized",       "burst",       "burst_tail"};
+static int cloud_replaces(int d) { return d == C_HUGE || d == C_NAN_POINTS || d == C_ORGANIZED; }
+
+enum { I_NAN, I_ABSURD, I_ZEROS, I_DUPLICATE, I_OUT_OF_ORDER, I_JUMP_BACK, I_FUTURE, I_COUNT };
+static const char* const imu_names[I_COUNT] = {"imu_nan",       "imu_absurd",       "imu_zeros",
+                                               "imu_duplicate", "imu_out_of_order", "imu_jump_back",
+                                               "imu_future"};
+
+/* Builds defect d from valid cloud m into *c (which the caller writes, then frees). Returns the
+ * number of copies to write. */
+static int make_cloud_defect(int d, const cloud_t* m, size_t max_points, cloud_t* c,
+                             int* nonfinite) {
+  const uint32_t n = m->width * m->height, step = m->point_step;
+  switch (d) {
+    case C_DATA_SHORT:
+      *c = clone_cloud(m, m->data._length - 10 * step);
+      return 1;
+    case C_DATA_LONG:
+      *c = clone_cloud(m, m->data._length + 64);
+      return 1;
+    case C_EMPTY:
+      *c = clone_cloud(m, 0);
+      c->width = 0;
+      c->row_step = 0;
+      return 1;
+    case C_HUGE: {
+      /* The same scan many times over: "several million points" of real geometry. */
+      const uint32_t reps = (uint32_t)((max_points + n - 1) / n);
+      *c = clone_cloud(m, m->data._length * reps);
+      for (uint32_t r = 1; r < reps; ++r)
+        memcpy(c->data._buffer + (size_t)r * m->data._length, m->data._buffer, m->data._length);
+      c->width = n * reps;
+      c->height = 1;
+      c->row_step = c->width * step;
+      return 1;
+    }
+    case C_ORGANIZED: {
+      const uint32_t w = n / 2;
+      *c = clone_cloud(m, 2 * w * step);
+      c->height = 2;
+      c->width = w;
+      c->row_step = w * step;
+      return 1;
+    }
+    default:
+      break;
+  }
+  *c = clone_cloud(m, m->data._length);
+  sensor_msgs_msg_dds__PointField_* last = &c->fields._buffer[c->fields._length - 1];
+  switch (d) {
+    case C_POINT_STEP_SMALL:
+      c->point_step = 8; /* x and y fit, z (offset 8) does not */
+      break;
+    case C_ROW_STEP:
+      c->row_step = c->width * step / 2;
+      break;
+    case C_BIG_ENDIAN:
+      c->is_bigendian = true;
+      break;
+    case C_UNKNOWN_TYPE:
+    case C_BURST:
+    case C_BURST_TAIL:
+      last->datatype = 42;
+      return d == C_BURST ? 30 : 1;
+    case C_DUPLICATE_FIELD:
+      free(c->fields._buffer[1].name);
+      c->fields._buffer[1].name = strdup(c->fields._buffer[0].name);
+      break;
+    case C_MISSING_XYZ: {
+      sensor_msgs_msg_dds__PointField_* z = find_field(c, "z");
+      if (z) {
+        free(z->name);
+        z->name = strdup("zz");
+      }
+      break;
+    }
+    case C_OFFSET_BEYOND:
+      last->offset = step;
+      break;
+    case C_STAMP_ZERO:
+      c->header.stamp.sec = 0;
+      c->header.stamp.nanosec = 0;
+      break;
+    case C_FAR_FUTURE:
+      c->header.stamp.sec += 1000000;
+      break;
+    case C_STALE:
+      c->header.stamp.sec -= 3;
+      break;
+    case C_TOO_LARGE:
+      c->width = 5000000; /* declared only: refused before the data is looked at */
+      c->height = 1;
+      c->row_step = c->width * step;
+      break;
+    case C_NAN_POINTS: {
+      sensor_msgs_msg_dds__PointField_* x = find_field(c, "x");
+      sensor_msgs_msg_dds__PointField_* y = find_field(c, "y");
+      const float nan = NAN, inf = INFINITY;
+      *nonfinite = 0;
+      for (uint32_t i = 0; x && y && i < n; ++i) {
+        if (i % 10 == 0) memcpy(c->data._buffer + (size_t)i * step + x->offset, &nan, 4);
+        if (i % 10 == 5) memcpy(c->data._buffer + (size_t)i * step + y->offset, &inf, 4);
+        if (i % 10 == 0 || i % 10 == 5) ++*nonfinite;
+      }
+      break;
+    }
+    default:
+      break;
+  }
+  return 1;
+}
+
+typedef struct {
+  const char* name;
+  double check; /* stamp of the scan whose odometry must arrive; <0 until known */
+} check_t;
+
+/* Odometry for the scan stamped s (header at scan start, 10 Hz): stamped at the scan's last
+ * point, s + ~0.1 s; the scan before ends just before s, the next one at s + ~0.2 s. */
+static int odom_for(const tally_t* t, double s) {
+  for (int i = 0; i < t->n_stamps; ++i)
+    if (t->stamps[i] > s + 0.05 && t->stamps[i] < s + 0.15) return 1;
+  return 0;
+}
+
 int main(int argc, char** argv) {
   if (argc < 4) {
     fprintf(stderr, "usage: %s DUMP DOMAIN WAIT_S\n", argv[0]);
@@ -137,6 +340,22 @@ int main(int argc, char** argv) {
   }
   const dds_domainid_t domain = (dds_domainid_t)atoi(argv[2]);
   const double wait_s = atof(argv[3]);
+  int hostile_from = -1;
+  double gap_start = -1, gap_len = 0;
+  size_t max_points = 2100000;
+  for (int i = 4; i < argc; ++i) {
+    if (strcmp(argv[i], "--hostile") == 0 && i + 1 < argc) {
+      hostile_from = atoi(argv[++i]);
+    } else if (strcmp(argv[i], "--imu-gap") == 0 && i + 2 < argc) {
+      gap_start = atof(argv[++i]);
+      gap_len = atof(argv[++i]);
+    } else if (strcmp(argv[i], "--max-points") == 0 && i + 1 < argc) {
+      max_points = (size_t)atoll(argv[++i]);
+    } else {
+      fprintf(stderr, "cyclone_peer: unknown option %s\n", argv[i]);
+      return 2;
+    }
+  }
 
   dds_entity_t pp = dds_create_participant(domain, NULL, NULL);
   if (pp < 0) {
@@ -202,9 +421,14 @@ int main(int argc, char** argv) {
 
   tally_t t;
   memset(&t, 0, sizeof(t));
-  int sent_scans = 0, sent_imu = 0, write_errors = 0;
+  int sent_scans = 0, sent_imu = 0, write_errors = 0, skipped_imu = 0, defects_sent = 0;
   int64_t wall0 = 0, bag0 = 0;
   int first = 1;
+  int clouds_read = 0, hostile_step = 0, imu_defect = -1;
+  check_t checks[64];
+  int n_checks = 0;
+  imu_t held; /* I_OUT_OF_ORDER: the sample sent after its successor */
+  int holding = 0;
   uint8_t kind;
   while (rd(f, &kind, 1)) {
     int64_t bag_ns;
@@ -233,10 +457,56 @@ int main(int argc, char** argv) {
       m.orientation.y = q[1];
       m.orientation.z = q[2];
       m.orientation.w = q[3];
-      if (dds_write(w_imu, &m) < 0)
-        write_errors++;
-      else
-        sent_imu++;
+      if (gap_start >= 0 && bag_ns - bag0 >= (int64_t)(gap_start * 1e9) &&
+          bag_ns - bag0 < (int64_t)((gap_start + gap_len) * 1e9)) {
+        skipped_imu++; /* the IMU falls silent, the LiDAR goes on */
+      } else if (imu_defect == I_OUT_OF_ORDER && !holding) {
+        held = m;
+        held.header.frame_id = strdup(frame);
+        holding = 1;
+      } else {
+        if (dds_write(w_imu, &m) < 0)
+          write_errors++;
+        else
+          sent_imu++;
+        imu_t d = m;
+        int send = 1;
+        switch (imu_defect) {
+          case I_NAN:
+            d.linear_acceleration.x = NAN;
+            break;
+          case I_ABSURD:
+            d.linear_acceleration.z = 1e5;
+            d.header.stamp.nanosec += d.header.stamp.nanosec < 999999000u ? 1000u : 0u;
+            break;
+          case I_ZEROS:
+            memset(&d, 0, sizeof(d));
+            d.header.frame_id = "";
+            break;
+          case I_DUPLICATE:
+            break;
+          case I_OUT_OF_ORDER:
+            d = held;
+            break;
+          case I_JUMP_BACK:
+            d.header.stamp.sec -= 10;
+            break;
+          case I_FUTURE:
+            d.header.stamp.sec += 1000;
+            break;
+          default:
+            send = 0;
+        }
+        if (send) {
+          if (dds_write(w_imu, &d) < 0) write_errors++;
+          defects_sent++;
+          if (imu_defect == I_OUT_OF_ORDER) {
+            free(held.header.frame_id);
+            holding = 0;
+          }
+          imu_defect = -1;
+        }
+      }
     } else if (kind == 2) {
       sensor_msgs_msg_dds__PointCloud2_ m;
       memset(&m, 0, sizeof(m));
@@ -268,10 +538,48 @@ int main(int argc, char** argv) {
         m.data._length = m.data._maximum = nbytes;
         m.data._release = false;
         m.is_dense = dense != 0;
-        if (dds_write(w_points, &m) < 0)
+        const double stamp = sec + 1e-9 * nsec;
+        ++clouds_read;
+        for (int i = 0; i < n_checks; ++i)
+          if (checks[i].check < 0) checks[i].check = stamp;
+        int defect = -1;
+        if (hostile_from >= 0 && clouds_read > hostile_from) {
+          const int j = hostile_step++;
+          if (j % 2 == 0 && j / 2 < C_COUNT) defect = j / 2;
+          if (j % 2 == 1 && j / 2 < I_COUNT) {
+            imu_defect = j / 2;
+            checks[n_checks].name = imu_names[j / 2];
+            checks[n_checks++].check = -1; /* the next scan */
+            printf("HOSTILE name=%s\n", imu_names[j / 2]);
+          }
+        }
+        cloud_t c;
+        int nonfinite = 0, copies = 0;
+        if (defect >= 0) copies = make_cloud_defect(defect, &m, max_points, &c, &nonfinite);
+        /* A replacing defect takes the valid cloud's place; the others follow it. */
+        if (dds_write(w_points, defect >= 0 && cloud_replaces(defect) ? &c : &m) < 0)
           write_errors++;
         else
           sent_scans++;
+        if (defect >= 0) {
+          if (cloud_replaces(defect)) {
+            checks[n_checks].name = cloud_names[defect];
+            checks[n_checks++].check = stamp;
+          } else {
+            for (int k = 0; k < copies; ++k)
+              if (dds_write(w_points, &c) < 0) write_errors++;
+            checks[n_checks].name = cloud_names[defect];
+            checks[n_checks++].check = -1;
+          }
+          /* Tens of MB go out as tens of thousands of UDP fragments, more than the socket
+           * buffers hold: let the reliable protocol repair them before the next scan competes. */
+          if (defect == C_HUGE) dds_wait_for_acks(w_points, DDS_SECS(20));
+          defects_sent += copies;
+          printf("HOSTILE name=%s points=%u nonfinite=%d copies=%d\n", cloud_names[defect],
+                 c.width * c.height, nonfinite, copies);
+          fflush(stdout);
+          free_cloud(&c);
+        }
       }
       for (uint32_t i = 0; i < nfields; ++i) free(fields[i].name);
       free(fields);
@@ -301,12 +609,21 @@ int main(int argc, char** argv) {
       last_change = now_ns();
     }
   }
+  int checks_failed = 0;
+  for (int i = 0; i < n_checks; ++i) {
+    const int ok = checks[i].check >= 0 && odom_for(&t, checks[i].check);
+    checks_failed += !ok;
+    printf("HOSTILE_CHECK name=%s scan=%.6f odom=%d\n", checks[i].name, checks[i].check, ok);
+  }
   printf(
       "RESULT sent_scans=%d sent_imu=%d write_errors=%d odom=%d odom_bad=%d odom_frames_bad=%d "
-      "odom_not_monotonic=%d planes=%d planes_bad=%d planes_total=%d\n",
+      "odom_not_monotonic=%d planes=%d planes_bad=%d planes_total=%d skipped_imu=%d "
+      "defects_sent=%d hostile_checks=%d hostile_checks_failed=%d\n",
       sent_scans, sent_imu, write_errors, t.odom, t.odom_bad, t.odom_frames_bad,
-      t.odom_not_monotonic, t.planes, t.planes_bad, t.planes_total);
+      t.odom_not_monotonic, t.planes, t.planes_bad, t.planes_total, skipped_imu, defects_sent,
+      n_checks, checks_failed);
   fflush(stdout);
+  free(t.stamps);
   dds_delete(pp);
   return 0;
 }

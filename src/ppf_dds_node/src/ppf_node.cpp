@@ -4,12 +4,9 @@
 #include <condition_variable>
 #include <cstdio>
 #include <deque>
-#include <fstream>
-#include <iomanip>
 #include <limits>
 #include <map>
 #include <mutex>
-#include <sstream>
 #include <thread>
 #include <vector>
 
@@ -22,15 +19,14 @@
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include "node_outputs.hpp"
+#include "node_stats.hpp"
 #include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
 #include "ppf_bridge/msg_traits.hpp"
-#include "ppf_bridge/odometry.hpp"
-#include "ppf_bridge/skeleton_planes.hpp"
 #include "ppf_core/config_yaml.hpp"
 #include "ppf_core/lio_ppf.hpp"
 #include "ppf_dds_node/gap_counter.hpp"
-#include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/logging.hpp"
 #include "ppf_dds_node/time_ordered_queue.hpp"
 #include "ppf_dds_node/validating_type.hpp"
@@ -50,7 +46,7 @@ struct ScanItem {
   std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;
   Clock::time_point received;         // listener entry, before the sample is taken and decoded
   Clock::time_point queued;           // pushed into the scan queue
-  int64_t core_busy_ns_at_queue = 0;  // Impl::core_busy_ns when queued
+  int64_t core_busy_ns_at_queue = 0;  // NodeStats::core_busy_ns() when queued
 };
 
 struct ImuItem {
@@ -67,27 +63,6 @@ struct PendingScan {
   double add_scan_ms = 0.0;
   std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;  // kept only for /registered_points
 };
-
-template <typename MsgT>
-fdds::DataWriter* CreateWriter(fdds::DomainParticipant* participant, fdds::Publisher* publisher,
-                               fdds::TypeSupport* type, const std::string& ros_topic,
-                               const fdds::DataWriterQos& qos, std::string* error) {
-  // A name already registered with another type support would silently use that one's
-  // (de)serializer on our samples: refuse instead.
-  if (type->register_type(participant) != ReturnCode_t::RETCODE_OK) {
-    *error = "type " + type->get_type_name() + " already registered differently";
-    return nullptr;
-  }
-  fdds::Topic* topic = participant->create_topic(RosTopicToDds(ros_topic), type->get_type_name(),
-                                                 fdds::TOPIC_QOS_DEFAULT);
-  if (!topic) {
-    *error = "cannot create topic " + RosTopicToDds(ros_topic);
-    return nullptr;
-  }
-  fdds::DataWriter* w = publisher->create_datawriter(topic, qos);
-  if (!w) *error = "cannot create writer on " + RosTopicToDds(ros_topic);
-  return w;
-}
 
 }  // namespace
 
@@ -186,18 +161,12 @@ struct PpfNode::Impl {
       if (const uint64_t missing =
               cloud_gaps.Count(info.sample_identity.writer_guid(),
                                info.sample_identity.sequence_number().to64long())) {
-        {
-          std::lock_guard<std::mutex> lock(stats_mutex);
-          summary.scans_lost += missing;
-        }
+        stats.Add(&NodeSummary::scans_lost, missing);
         lost_log.Log(Level::kWarn, "points: " + std::to_string(missing) +
                                        " scan(s) never reached the node (transport loss or "
                                        "reader history overwritten)");
       }
-      {
-        std::lock_guard<std::mutex> lock(stats_mutex);
-        ++summary.scans_received;
-      }
+      stats.Add(&NodeSummary::scans_received);
       // Size first: a cloud declaring more points than the bound is refused before anything
       // looks at its data.
       if (sample.valid && !CheckCloudSize(*buffer)) {
@@ -211,10 +180,7 @@ struct PpfNode::Impl {
         error = sample.error;
       }
       if (!sample.valid) {
-        {
-          std::lock_guard<std::mutex> lock(stats_mutex);
-          ++summary.scans_malformed;
-        }
+        stats.Add(&NodeSummary::scans_malformed);
         malformed_log.Log(Level::kWarn, "rejected malformed PointCloud2 on " +
                                             RosTopicToDds(config.points_topic) + " (" +
                                             std::to_string(sample.payload_size) +
@@ -230,22 +196,16 @@ struct PpfNode::Impl {
       std::shared_ptr<sensor_msgs::msg::PointCloud2> msg(
           buffer.release(), [this](sensor_msgs::msg::PointCloud2* m) { ReturnToPool(m); });
       auto pushed = scan_queue.Push(
-          stamp, ScanItem{std::move(msg), received, Clock::now(), core_busy_ns.load()});
+          stamp, ScanItem{std::move(msg), received, Clock::now(), stats.core_busy_ns()});
       if (pushed.time_jump) {
-        {
-          std::lock_guard<std::mutex> lock(stats_mutex);
-          ++summary.time_jumps;
-        }
+        stats.Add(&NodeSummary::time_jumps);
         jump_log.Log(Level::kWarn,
                      "scan time jumped back to " + std::to_string(stamp) +
                          " (bag loop? clock reset? a stale scan?): the core restarts only if "
                          "the IMU stream jumps back too, otherwise the scan is dropped as late");
       }
       if (pushed.evicted) {
-        {
-          std::lock_guard<std::mutex> lock(stats_mutex);
-          ++summary.scans_dropped;
-        }
+        stats.Add(&NodeSummary::scans_dropped);
         drop_log.Log(Level::kWarn,
                      "core behind: dropped the oldest queued scan (stamp " +
                          std::to_string(bridge::ToSeconds(pushed.evicted->msg->header().stamp())) +
@@ -257,10 +217,7 @@ struct PpfNode::Impl {
   bool CheckCloudSize(const sensor_msgs::msg::PointCloud2& m) {
     const uint64_t n = static_cast<uint64_t>(m.width()) * m.height();
     if (n <= static_cast<uint64_t>(config.max_cloud_points)) return true;
-    {
-      std::lock_guard<std::mutex> lock(stats_mutex);
-      ++summary.scans_too_large;
-    }
+    stats.Add(&NodeSummary::scans_too_large);
     large_log.Log(Level::kWarn, std::to_string(n) + "-point PointCloud2 on " +
                                     RosTopicToDds(config.points_topic) +
                                     " exceeds queues.max_cloud_points " +
@@ -274,19 +231,13 @@ struct PpfNode::Impl {
     const uint64_t n = static_cast<uint64_t>(m.width()) * m.height();
     const std::string on = " PointCloud2 on " + RosTopicToDds(config.points_topic);
     if (n == 0) {
-      {
-        std::lock_guard<std::mutex> lock(stats_mutex);
-        ++summary.scans_empty;
-      }
+      stats.Add(&NodeSummary::scans_empty);
       empty_log.Log(Level::kWarn, "empty" + on + " (stamp " + std::to_string(stamp) +
                                       "): nothing to register, skipped");
       return false;
     }
     if (!(stamp > 0.0)) {
-      {
-        std::lock_guard<std::mutex> lock(stats_mutex);
-        ++summary.scans_bad_stamp;
-      }
+      stats.Add(&NodeSummary::scans_bad_stamp);
       stamp_log.Log(Level::kWarn, on.substr(1) + " has stamp " + std::to_string(stamp) +
                                       " (unset clock?): skipped");
       return false;
@@ -310,12 +261,7 @@ struct PpfNode::Impl {
       if (const uint64_t missing =
               imu_gaps.Count(info.sample_identity.writer_guid(),
                              info.sample_identity.sequence_number().to64long())) {
-        uint64_t total;
-        {
-          std::lock_guard<std::mutex> lock(stats_mutex);
-          summary.imu_lost += missing;
-          total = summary.imu_lost;
-        }
+        const uint64_t total = stats.Add(&NodeSummary::imu_lost, missing);
         // Loud: the filter integrates every IMU sample (the core also sees the time gap).
         Log(Level::kError, "imu: " + std::to_string(missing) +
                                " sample(s) never reached the node (transport loss or reader "
@@ -325,34 +271,28 @@ struct PpfNode::Impl {
       std::string error = sample.error;
       std::optional<ImuSample> imu;
       if (sample.valid) imu = bridge::ToImuSample(sample.msg, &error);
+      stats.Add(&NodeSummary::imu_received);
       if (!imu) {
-        {
-          std::lock_guard<std::mutex> lock(stats_mutex);
-          ++summary.imu_received;
-          ++summary.imu_malformed;
-        }
+        stats.Add(&NodeSummary::imu_malformed);
         imu_malformed_log.Log(Level::kWarn, "rejected malformed Imu on " +
                                                 RosTopicToDds(config.imu_topic) + ": " + error);
         continue;
       }
       auto pushed = imu_queue.Push(imu->stamp_s, ImuItem{*imu});
-      std::lock_guard<std::mutex> lock(stats_mutex);
-      ++summary.imu_received;
-      if (pushed.out_of_order) ++summary.imu_out_of_order;
+      if (pushed.out_of_order) stats.Add(&NodeSummary::imu_out_of_order);
       if (pushed.time_jump) {
-        ++summary.time_jumps;
+        stats.Add(&NodeSummary::time_jumps);
         jump_log.Log(Level::kWarn, "IMU time jumped back to " + std::to_string(imu->stamp_s) +
                                        " (bag loop? clock reset? an outlier?): the core restarts "
                                        "once the following samples continue from there");
       }
       if (pushed.evicted) {
-        ++summary.imu_overflow;
+        const uint64_t total = stats.Add(&NodeSummary::imu_overflow);
         // Loud on purpose: losing IMU silently would corrupt the state estimate.
-        Log(Level::kError, "IMU queue full (" + std::to_string(imu_queue.capacity()) +
-                               "): dropped IMU sample at " +
-                               std::to_string(pushed.evicted->sample.stamp_s) +
-                               "; the core is stalled (total IMU dropped: " +
-                               std::to_string(summary.imu_overflow) + ")");
+        Log(Level::kError,
+            "IMU queue full (" + std::to_string(imu_queue.capacity()) +
+                "): dropped IMU sample at " + std::to_string(pushed.evicted->sample.stamp_s) +
+                "; the core is stalled (total IMU dropped: " + std::to_string(total) + ")");
       }
     }
   }
@@ -398,10 +338,7 @@ struct PpfNode::Impl {
     if (!pending.empty()) RunCore(true);
     core->Reset();
     last_imu_fed = last_scan_fed = -std::numeric_limits<double>::infinity();
-    {
-      std::lock_guard<std::mutex> lock(stats_mutex);
-      ++summary.resets;
-    }
+    stats.Add(&NodeSummary::resets);
     // Not rate limited: restarts are rare and each one matters.
     Log(Level::kWarn, why + ": core restarted (initialization starts over)");
   }
@@ -443,20 +380,14 @@ struct PpfNode::Impl {
     // The stream went on where it was: what waited for confirmation was an outlier.
     if (!imu_candidates.empty()) DropImuCandidates();
     if (have && s.stamp_s == last_imu_fed) {
-      {
-        std::lock_guard<std::mutex> lock(stats_mutex);
-        ++summary.imu_duplicate;
-      }
+      stats.Add(&NodeSummary::imu_duplicate);
       imu_dup_log.Log(Level::kError, "IMU sample at " + std::to_string(s.stamp_s) +
                                          " has the stamp of the sample before it (duplicate): "
                                          "dropped");
       return;
     }
     if (have && s.stamp_s < last_imu_fed) {
-      {
-        std::lock_guard<std::mutex> lock(stats_mutex);
-        ++summary.imu_late;
-      }
+      stats.Add(&NodeSummary::imu_late);
       imu_late_log.Log(Level::kError, "IMU sample at " + std::to_string(s.stamp_s) +
                                           " arrived after newer ones were integrated: dropped");
       return;
@@ -474,10 +405,7 @@ struct PpfNode::Impl {
     if (imu_candidates.empty()) return;
     const size_t n = imu_candidates.size();
     const double off = imu_candidates.front().stamp_s - last_imu_fed;
-    {
-      std::lock_guard<std::mutex> lock(stats_mutex);
-      summary.imu_outliers += n;
-    }
+    stats.Add(&NodeSummary::imu_outliers, n);
     outlier_log.Log(Level::kError, "dropped " + std::to_string(n) + " IMU sample(s) stamped " +
                                        std::to_string(imu_candidates.front().stamp_s) + ", " +
                                        std::to_string(std::abs(off)) + " s " +
@@ -497,10 +425,7 @@ struct PpfNode::Impl {
   bool AcceptScanStamp(double stamp) {
     const bool have_imu = std::isfinite(last_imu_fed);
     if (have_imu && stamp > last_imu_fed + kScanAheadS) {
-      {
-        std::lock_guard<std::mutex> lock(stats_mutex);
-        ++summary.scans_bad_stamp;
-      }
+      stats.Add(&NodeSummary::scans_bad_stamp);
       stamp_log.Log(Level::kWarn, "scan at " + std::to_string(stamp) + " is " +
                                       std::to_string(stamp - last_imu_fed) +
                                       " s ahead of the IMU stream (far-future stamp, or the IMU "
@@ -508,10 +433,7 @@ struct PpfNode::Impl {
       return false;
     }
     if (stamp <= last_scan_fed) {
-      {
-        std::lock_guard<std::mutex> lock(stats_mutex);
-        ++summary.scans_late;
-      }
+      stats.Add(&NodeSummary::scans_late);
       late_log.Log(Level::kWarn, "scan at " + std::to_string(stamp) + " is " +
                                      std::to_string(last_scan_fed - stamp) +
                                      " s older than the last processed one: dropped");
@@ -534,10 +456,10 @@ struct PpfNode::Impl {
     // Core time completed while this scan waited (a call already running when it was queued
     // counts whole, hence the min).
     p.behind_core_ms = std::min(
-        p.queue_ms, 1e-6 * static_cast<double>(core_busy_ns.load() - item.core_busy_ns_at_queue));
+        p.queue_ms, 1e-6 * static_cast<double>(stats.core_busy_ns() - item.core_busy_ns_at_queue));
     p.added = Clock::now();
     p.add_scan_ms = MsBetween(t0, p.added);
-    core_busy_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(p.added - t0).count();
+    stats.AddCoreBusy(p.added - t0);
     if (config.publish_registered_points) p.msg = std::move(item.msg);
     pending.push_back(std::move(p));
   }
@@ -547,7 +469,7 @@ struct PpfNode::Impl {
     std::vector<ScanResult> results = core->Process(flush);
     const Clock::time_point t1 = Clock::now();
     const double process_ms = MsBetween(t0, t1);
-    core_busy_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count();
+    stats.AddCoreBusy(t1 - t0);
     // Core time of a result: its AddScan plus its share of the Process call (by the core's own
     // per-scan timings when one call returns several scans).
     double total = 0.0;
@@ -566,17 +488,9 @@ struct PpfNode::Impl {
   }
 
   void Publish(const ScanResult& r, const PendingScan& p, double core_ms, double imu_wait_ms) {
-    const Clock::time_point publish_start = Clock::now();
-    {
-      std::lock_guard<std::mutex> lock(stats_mutex);
-      ++summary.scans_processed;
-      summary.last_status = StatusName(r.status);
-      if (r.status == Status::kRejected) ++summary.scans_rejected;
-      if (r.status == Status::kInitializing) ++summary.scans_initializing;
-      if (r.status == Status::kReset) ++summary.resets;
-      if (r.status == Status::kDegenerate) ++summary.degenerate;
-      summary.points_nonfinite += r.dropped_nan;
-    }
+    ScanTiming t;
+    t.publish_start = Clock::now();
+    stats.CountResult(r);
     if (r.dropped_nan > 0) {
       nonfinite_log.Log(Level::kWarn, "scan at " + std::to_string(r.scan_begin_s) + ": " +
                                           std::to_string(r.dropped_nan) + " of " +
@@ -587,153 +501,15 @@ struct PpfNode::Impl {
       status_log.Log(Level::kWarn, std::string("core: ") + StatusName(r.status) + ": " + r.reason);
     }
     if (!r.pose_valid) return;
-    bridge::OdometryFrames frames{config.odom_frame, config.base_frame};
-    nav_msgs::msg::Odometry odom = bridge::ToOdometryMsg(r, frames, last_gyro - r.gyro_bias);
-    odometry_writer->write(&odom);
-    if (tf_writer) {
-      tf2_msgs::msg::TFMessage tf = bridge::ToTfMessage(r, frames);
-      tf_writer->write(&tf);
-    }
-    if (path_writer) {
-      path.poses().push_back(bridge::ToPoseStamped(r, config.odom_frame));
-      if (path.poses().size() > static_cast<size_t>(config.path_max_poses)) {
-        path.poses().erase(path.poses().begin());
-      }
-      path.header() = path.poses().back().header();
-      path_writer->write(&path);
-    }
-    if (planes_writer) {
-      // The facade's built-in skeleton tracker (kPpf) reports its world-frame window after each
-      // scan; the message carries the planes fitted in this scan (missed_scans == 0), world = odom
-      // frame. In kNN mode the message is empty, still one per scan.
-      std::vector<SkeletonPlane> fitted;
-      for (const SkeletonPlane& sp : r.skeleton_planes) {
-        if (sp.missed_scans == 0) fitted.push_back(sp);
-      }
-      ppf_msgs::msg::SkeletonPlaneArray planes =
-          bridge::ToSkeletonPlaneArray(fitted, r.stamp_s, config.odom_frame);
-      planes_writer->write(&planes);
-    }
-    if (registered_writer && p.msg) PublishRegistered(r, *p.msg);
-    const Clock::time_point published = Clock::now();
-    trajectory.push_back(r);
-
-    const double latency = MsBetween(p.received, published);
-    std::lock_guard<std::mutex> lock(stats_mutex);
-    ++summary.odometry_published;
-    latency_ms.Add(latency);
-    core_time_ms.Add(core_ms);
-    imu_wait_stats.Add(imu_wait_ms);
-    decode_stats.Add(p.decode_ms);
-    queue_stats.Add(p.queue_ms);
-    behind_core_stats.Add(p.behind_core_ms);
-    publish_stats.Add(MsBetween(publish_start, published));
-    // Node overhead: everything between DDS receive and publish that is not the core working on
-    // this scan, waiting for the core to finish earlier scans, or waiting for the IMU that covers
-    // the scan end (the last two are reported apart).
-    overhead_ms.Add(latency - core_ms - imu_wait_ms - p.behind_core_ms);
-  }
-
-  // Input points moved to the odom frame with the scan-end pose (not de-skewed: the core keeps
-  // its de-skewed cloud internal). x, y, z float32 only.
-  void PublishRegistered(const ScanResult& r, const sensor_msgs::msg::PointCloud2& in) {
-    int ox = -1, oy = -1, oz = -1;
-    for (const auto& f : in.fields()) {
-      if (f.datatype() != 7) continue;
-      if (f.name() == "x") ox = static_cast<int>(f.offset());
-      if (f.name() == "y") oy = static_cast<int>(f.offset());
-      if (f.name() == "z") oz = static_cast<int>(f.offset());
-    }
-    if (ox < 0 || oy < 0 || oz < 0 || in.is_bigendian()) return;
-    const size_t n = static_cast<size_t>(in.width()) * in.height();
-    const size_t step = in.point_step();
-    if (step == 0 || in.data().size() < n * step) return;
-    // The registered cloud goes out through the input's validating type: one type name can only
-    // be registered once per participant, and the reader must keep the validating one.
-    Validated<sensor_msgs::msg::PointCloud2> wrapped;
-    sensor_msgs::msg::PointCloud2& out = wrapped.msg;
-    out.header().stamp(bridge::TimeFromSeconds(r.stamp_s));
-    out.header().frame_id(config.odom_frame);
-    out.height(1);
-    const char* names[] = {"x", "y", "z"};
-    for (uint32_t i = 0; i < 3; ++i) {
-      sensor_msgs::msg::PointField f;
-      f.name(names[i]);
-      f.offset(4 * i);
-      f.datatype(7);
-      f.count(1);
-      out.fields().push_back(f);
-    }
-    out.point_step(12);
-    out.is_bigendian(false);
-    out.is_dense(true);
-    std::vector<uint8_t>& data = out.data();
-    data.resize(n * 12);
-    const Eigen::Isometry3d& T = r.T_world_lidar;
-    size_t kept = 0;
-    for (size_t i = 0; i < n; ++i) {
-      const uint8_t* p = in.data().data() + i * step;
-      float v[3];
-      std::memcpy(&v[0], p + ox, 4);
-      std::memcpy(&v[1], p + oy, 4);
-      std::memcpy(&v[2], p + oz, 4);
-      if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2])) continue;
-      const Eigen::Vector3d w = T * Eigen::Vector3d(v[0], v[1], v[2]);
-      const float o[3] = {static_cast<float>(w.x()), static_cast<float>(w.y()),
-                          static_cast<float>(w.z())};
-      std::memcpy(data.data() + kept * 12, o, 12);
-      ++kept;
-    }
-    data.resize(kept * 12);
-    out.width(static_cast<uint32_t>(kept));
-    out.row_step(static_cast<uint32_t>(kept * 12));
-    registered_writer->write(&wrapped);
-  }
-
-  bool WriteTum(std::string* error) {
-    std::ofstream out(config.tum_file);
-    if (!out) {
-      *error = "cannot write trajectory file '" + config.tum_file + "'";
-      return false;
-    }
-    out << std::fixed;
-    for (const ScanResult& r : trajectory) {
-      const Eigen::Vector3d p = r.T_world_imu.translation();
-      Eigen::Quaterniond q(r.T_world_imu.linear());
-      q.normalize();
-      out << std::setprecision(9) << r.stamp_s << ' ' << p.x() << ' ' << p.y() << ' ' << p.z()
-          << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
-    }
-    out.flush();
-    if (!out) {
-      *error = "error writing '" + config.tum_file + "'";
-      return false;
-    }
-    return true;
-  }
-
-  NodeSummary Snapshot() const {
-    std::lock_guard<std::mutex> lock(stats_mutex);
-    NodeSummary s = summary;
-    s.latency_p50_ms = latency_ms.Percentile(50);
-    s.latency_p99_ms = latency_ms.Percentile(99);
-    s.latency_max_ms = latency_ms.Max();
-    s.core_p50_ms = core_time_ms.Percentile(50);
-    s.core_p99_ms = core_time_ms.Percentile(99);
-    s.overhead_p50_ms = overhead_ms.Percentile(50);
-    s.overhead_p99_ms = overhead_ms.Percentile(99);
-    s.overhead_max_ms = overhead_ms.Max();
-    s.imu_wait_p50_ms = imu_wait_stats.Percentile(50);
-    s.imu_wait_p99_ms = imu_wait_stats.Percentile(99);
-    s.decode_p50_ms = decode_stats.Percentile(50);
-    s.decode_p99_ms = decode_stats.Percentile(99);
-    s.queue_p50_ms = queue_stats.Percentile(50);
-    s.queue_p99_ms = queue_stats.Percentile(99);
-    s.behind_core_p50_ms = behind_core_stats.Percentile(50);
-    s.behind_core_p99_ms = behind_core_stats.Percentile(99);
-    s.publish_p50_ms = publish_stats.Percentile(50);
-    s.publish_p99_ms = publish_stats.Percentile(99);
-    return s;
+    outputs.Publish(r, last_gyro - r.gyro_bias, p.msg.get());
+    t.published = Clock::now();
+    t.received = p.received;
+    t.core_ms = core_ms;
+    t.imu_wait_ms = imu_wait_ms;
+    t.decode_ms = p.decode_ms;
+    t.queue_ms = p.queue_ms;
+    t.behind_core_ms = p.behind_core_ms;
+    stats.AddPublished(t);
   }
 
   void FlushInputLogs() {
@@ -746,48 +522,23 @@ struct PpfNode::Impl {
 
   void LogPeriodic(size_t* latency_mark) {
     FlushInputLogs();
-    NodeSummary s;
-    double lat50, lat99, ovh99;
-    size_t n;
-    {
-      std::lock_guard<std::mutex> lock(stats_mutex);
-      s = summary;
-      n = latency_ms.count();
-      lat50 = latency_ms.PercentileSince(*latency_mark, 50);
-      lat99 = latency_ms.PercentileSince(*latency_mark, 99);
-      ovh99 = overhead_ms.PercentileSince(*latency_mark, 99);
-    }
-    std::ostringstream o;
-    o << std::fixed << std::setprecision(2)
-      << "status=" << (s.last_status.empty() ? "waiting" : s.last_status)
-      << " scans rx=" << s.scans_received << " proc=" << s.scans_processed
-      << " odom=" << s.odometry_published << " dropped=" << s.scans_dropped
-      << " malformed=" << s.scans_malformed + s.imu_malformed << " imu rx=" << s.imu_received
-      << " queues scan=" << scan_queue.Size() << "/" << scan_queue.capacity()
-      << " imu=" << imu_queue.Size() << " | last " << (n - *latency_mark)
-      << " scans: latency p50=" << lat50 << " p99=" << lat99 << " ms, overhead p99=" << ovh99
-      << " ms";
-    Log(Level::kInfo, o.str());
-    *latency_mark = n;
+    QueueFill fill;
+    fill.scans = scan_queue.Size();
+    fill.scan_capacity = scan_queue.capacity();
+    fill.imus = imu_queue.Size();
+    Log(Level::kInfo, stats.PeriodicLine(latency_mark, fill));
   }
 
   NodeConfig config;
+  NodeStats stats;
+  NodeOutputs outputs{config};
   std::unique_ptr<LioPpf> core;
 
   fdds::DomainParticipant* participant = nullptr;
   fdds::Publisher* publisher = nullptr;
   fdds::Subscriber* subscriber = nullptr;
-  fdds::DataWriter* odometry_writer = nullptr;
-  fdds::DataWriter* tf_writer = nullptr;
-  fdds::DataWriter* path_writer = nullptr;
-  fdds::DataWriter* planes_writer = nullptr;
-  fdds::DataWriter* registered_writer = nullptr;
   fdds::DataReader* points_reader = nullptr;
   fdds::DataReader* imu_reader = nullptr;
-  fdds::TypeSupport odom_type{new nav_msgs::msg::OdometryPubSubType()};
-  fdds::TypeSupport tf_type{new tf2_msgs::msg::TFMessagePubSubType()};
-  fdds::TypeSupport path_type{new nav_msgs::msg::PathPubSubType()};
-  fdds::TypeSupport planes_type{new ppf_msgs::msg::SkeletonPlaneArrayPubSubType()};
   fdds::TypeSupport cloud_in_type{new ValidatingPubSubType<sensor_msgs::msg::PointCloud2>()};
   fdds::TypeSupport imu_in_type{new ValidatingPubSubType<sensor_msgs::msg::Imu>()};
   std::unique_ptr<CloudListener> cloud_listener;
@@ -807,8 +558,6 @@ struct PpfNode::Impl {
   std::vector<ImuSample> imu_candidates;  // off the timeline, waiting for confirmation
   std::deque<PendingScan> pending;
   Eigen::Vector3d last_gyro = Eigen::Vector3d::Zero();
-  nav_msgs::msg::Path path;
-  std::vector<ScanResult> trajectory;
 
   RateLimitedLog malformed_log;
   RateLimitedLog imu_malformed_log;
@@ -820,11 +569,6 @@ struct PpfNode::Impl {
   RateLimitedLog jump_log, late_log, imu_late_log, imu_dup_log, outlier_log;
   GapCounter cloud_gaps, imu_gaps;  // each used by its reader's listener only
 
-  mutable std::mutex stats_mutex;
-  NodeSummary summary;
-  LatencyStats latency_ms, core_time_ms, overhead_ms, imu_wait_stats, decode_stats, queue_stats,
-      behind_core_stats, publish_stats;
-  std::atomic<int64_t> core_busy_ns{0};  // total executor time inside the core
   bool torn_down = false;
 
   void TearDown() {
@@ -880,35 +624,7 @@ bool PpfNode::init(std::string* error) {
     return false;
   }
 
-  // Writers (ROS 2 QoS conventions, ROS2-INTEROP.md).
-  m.odometry_writer = CreateWriter<nav_msgs::msg::Odometry>(
-      m.participant, m.publisher, &m.odom_type, c.odometry_topic, DefaultWriterQos(10), error);
-  if (!m.odometry_writer) return false;
-  if (c.publish_skeleton_planes) {
-    m.planes_writer = CreateWriter<ppf_msgs::msg::SkeletonPlaneArray>(
-        m.participant, m.publisher, &m.planes_type, c.skeleton_planes_topic, DefaultWriterQos(10),
-        error);
-    if (!m.planes_writer) return false;
-  }
-  if (c.publish_tf) {
-    m.tf_writer = CreateWriter<tf2_msgs::msg::TFMessage>(m.participant, m.publisher, &m.tf_type,
-                                                         c.tf_topic, TfWriterQos(), error);
-    if (!m.tf_writer) return false;
-  }
-  if (c.publish_path) {
-    // Each message is the whole bounded path: only the latest matters.
-    m.path_writer = CreateWriter<nav_msgs::msg::Path>(m.participant, m.publisher, &m.path_type,
-                                                      c.path_topic, DefaultWriterQos(1), error);
-    if (!m.path_writer) return false;
-  }
-  if (c.publish_registered_points) {
-    // Reliable matches both reliable and best-effort readers (RViz either way); depth 2 bounds
-    // the memory held for slow readers.
-    m.registered_writer = CreateWriter<sensor_msgs::msg::PointCloud2>(
-        m.participant, m.publisher, &m.cloud_in_type, c.registered_points_topic,
-        DefaultWriterQos(2), error);
-    if (!m.registered_writer) return false;
-  }
+  if (!m.outputs.Create(m.participant, m.publisher, &m.cloud_in_type, error)) return false;
 
   // Readers last: data may flow as soon as they exist.
   if (m.cloud_in_type.register_type(m.participant) != ReturnCode_t::RETCODE_OK ||
@@ -974,15 +690,15 @@ void PpfNode::run() {
   m.FlushInputLogs();  // the counts of bursts no later line reported
   if (!m.config.tum_file.empty()) {
     std::string error;
-    if (m.WriteTum(&error)) {
-      Log(Level::kInfo,
-          "trajectory: " + std::to_string(m.trajectory.size()) + " poses -> " + m.config.tum_file);
+    if (m.outputs.WriteTum(&error)) {
+      Log(Level::kInfo, "trajectory: " + std::to_string(m.outputs.trajectory_size()) +
+                            " poses -> " + m.config.tum_file);
     } else {
       Log(Level::kError, error);
     }
   }
   // Give reliable readers a moment to receive the last outputs before the writers go away.
-  if (m.odometry_writer) m.odometry_writer->wait_for_acknowledgments({1, 0});
+  m.outputs.WaitForAcknowledgments();
   m.TearDown();
 }
 
@@ -994,34 +710,8 @@ void PpfNode::stop() {
   impl_->stop_cv.notify_all();
 }
 
-NodeSummary PpfNode::summary() const { return impl_->Snapshot(); }
+NodeSummary PpfNode::summary() const { return impl_->stats.Snapshot(); }
 
-std::string PpfNode::FormatSummary(const NodeSummary& s) {
-  std::ostringstream o;
-  o << std::fixed << std::setprecision(3) << "scans_received=" << s.scans_received
-    << " scans_processed=" << s.scans_processed << " odometry_published=" << s.odometry_published
-    << " scans_dropped=" << s.scans_dropped << " scans_malformed=" << s.scans_malformed
-    << " scans_rejected=" << s.scans_rejected << " scans_initializing=" << s.scans_initializing
-    << " resets=" << s.resets << " degenerate=" << s.degenerate
-    << " imu_received=" << s.imu_received << " imu_malformed=" << s.imu_malformed
-    << " imu_overflow=" << s.imu_overflow << " imu_out_of_order=" << s.imu_out_of_order
-    << " time_jumps=" << s.time_jumps << " scans_late=" << s.scans_late
-    << " imu_late=" << s.imu_late << " scans_lost=" << s.scans_lost << " imu_lost=" << s.imu_lost
-    << " scans_empty=" << s.scans_empty << " scans_too_large=" << s.scans_too_large
-    << " scans_bad_stamp=" << s.scans_bad_stamp << " points_nonfinite=" << s.points_nonfinite
-    << " imu_duplicate=" << s.imu_duplicate << " imu_outliers=" << s.imu_outliers
-    << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
-    << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
-    << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms
-    << " overhead_p99_ms=" << s.overhead_p99_ms << " overhead_max_ms=" << s.overhead_max_ms
-    << " imu_wait_p50_ms=" << s.imu_wait_p50_ms << " imu_wait_p99_ms=" << s.imu_wait_p99_ms
-    << " decode_p50_ms=" << s.decode_p50_ms << " decode_p99_ms=" << s.decode_p99_ms
-    << " queue_p50_ms=" << s.queue_p50_ms << " queue_p99_ms=" << s.queue_p99_ms
-    << " behind_core_p50_ms=" << s.behind_core_p50_ms
-    << " behind_core_p99_ms=" << s.behind_core_p99_ms << " publish_p50_ms=" << s.publish_p50_ms
-    << " publish_p99_ms=" << s.publish_p99_ms
-    << " last_status=" << (s.last_status.empty() ? "none" : s.last_status);
-  return o.str();
-}
+std::string PpfNode::FormatSummary(const NodeSummary& s) { return NodeStats::FormatSummary(s); }
 
 }  // namespace ppf::dds

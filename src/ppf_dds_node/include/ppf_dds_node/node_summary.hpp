@@ -1,0 +1,52 @@
+// What ppf_node counted and measured over its run: printed as the PPF_NODE_SUMMARY line that
+// tests and scripts parse (PpfNode::FormatSummary), so fields are only ever added.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace ppf::dds {
+
+struct NodeSummary {
+  uint64_t scans_received = 0;
+  uint64_t scans_dropped = 0;       // evicted from the scan queue because the core fell behind
+  uint64_t scans_malformed = 0;     // undecodable CDR / unusable layout
+  uint64_t scans_processed = 0;     // results returned by the core
+  uint64_t scans_rejected = 0;      // core said kRejected
+  uint64_t scans_initializing = 0;  // core said kInitializing
+  uint64_t resets = 0;              // core said kReset, or the node restarted it (time jump)
+  uint64_t degenerate = 0;
+  uint64_t odometry_published = 0;
+  uint64_t imu_received = 0;
+  uint64_t imu_malformed = 0;
+  uint64_t imu_overflow = 0;      // evicted from the IMU queue (should never happen)
+  uint64_t imu_out_of_order = 0;  // sorted back into time order (within 0.5 s)
+  uint64_t time_jumps = 0;        // IMU or scan stamps jumping back > 0.5 s (bag loop)
+  uint64_t scans_late = 0;        // not newer than a scan already processed: dropped
+  uint64_t imu_late = 0;          // older than IMU already integrated (< 0.5 s): dropped
+  // Gaps in the writers' sequence numbers: samples that never reached the listener (transport
+  // loss, or the reader history overwrote them while the listener was descheduled).
+  uint64_t scans_lost = 0;
+  uint64_t imu_lost = 0;
+  uint64_t scans_empty = 0;       // well formed, no points: nothing to register, skipped
+  uint64_t scans_too_large = 0;   // more points than queues.max_cloud_points: skipped
+  uint64_t scans_bad_stamp = 0;   // stamp <= 0, or far ahead of the IMU stream: skipped
+  uint64_t points_nonfinite = 0;  // NaN/Inf points the core dropped from scans it processed
+  uint64_t imu_duplicate = 0;     // same stamp as the sample integrated before it: dropped
+  // Stamps off the stream's timeline (> 0.5 s back or ahead) that the following samples did
+  // not confirm: single outliers, dropped instead of restarting the filter.
+  uint64_t imu_outliers = 0;
+  double latency_p50_ms = 0, latency_p99_ms = 0, latency_max_ms = 0;
+  double core_p50_ms = 0, core_p99_ms = 0;
+  // overhead = latency - core - imu_wait - behind_core: the node's own cost (decode, hand-over,
+  // publishing).
+  double overhead_p50_ms = 0, overhead_p99_ms = 0, overhead_max_ms = 0;
+  double imu_wait_p50_ms = 0, imu_wait_p99_ms = 0;  // scan waited in the core for IMU coverage
+  double decode_p50_ms = 0, decode_p99_ms = 0;      // listener: take + CDR decode + checks
+  double queue_p50_ms = 0, queue_p99_ms = 0;        // scan queue -> executor
+  double behind_core_p50_ms = 0, behind_core_p99_ms = 0;  // of queue: core busy with older scans
+  double publish_p50_ms = 0, publish_p99_ms = 0;          // result -> all outputs written
+  std::string last_status;
+};
+
+}  // namespace ppf::dds

@@ -1,0 +1,187 @@
+#include "node_outputs.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iomanip>
+
+#include "ppf_bridge/convert.hpp"
+#include "ppf_bridge/odometry.hpp"
+#include "ppf_bridge/skeleton_planes.hpp"
+#include "ppf_dds_node/dds_common.hpp"
+#include "ppf_dds_node/validating_type.hpp"
+
+namespace ppf::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+
+namespace {
+
+fdds::DataWriter* CreateWriter(fdds::DomainParticipant* participant, fdds::Publisher* publisher,
+                               fdds::TypeSupport* type, const std::string& ros_topic,
+                               const fdds::DataWriterQos& qos, std::string* error) {
+  // A name already registered with another type support would silently use that one's
+  // (de)serializer on our samples: refuse instead.
+  if (type->register_type(participant) != ReturnCode_t::RETCODE_OK) {
+    *error = "type " + type->get_type_name() + " already registered differently";
+    return nullptr;
+  }
+  fdds::Topic* topic = participant->create_topic(RosTopicToDds(ros_topic), type->get_type_name(),
+                                                 fdds::TOPIC_QOS_DEFAULT);
+  if (!topic) {
+    *error = "cannot create topic " + RosTopicToDds(ros_topic);
+    return nullptr;
+  }
+  fdds::DataWriter* w = publisher->create_datawriter(topic, qos);
+  if (!w) *error = "cannot create writer on " + RosTopicToDds(ros_topic);
+  return w;
+}
+
+}  // namespace
+
+bool NodeOutputs::Create(fdds::DomainParticipant* participant, fdds::Publisher* publisher,
+                         fdds::TypeSupport* cloud_type, std::string* error) {
+  const NodeConfig& c = config_;
+  odometry_writer_ = CreateWriter(participant, publisher, &odom_type_, c.odometry_topic,
+                                  DefaultWriterQos(10), error);
+  if (!odometry_writer_) return false;
+  if (c.publish_skeleton_planes) {
+    planes_writer_ = CreateWriter(participant, publisher, &planes_type_, c.skeleton_planes_topic,
+                                  DefaultWriterQos(10), error);
+    if (!planes_writer_) return false;
+  }
+  if (c.publish_tf) {
+    tf_writer_ = CreateWriter(participant, publisher, &tf_type_, c.tf_topic, TfWriterQos(), error);
+    if (!tf_writer_) return false;
+  }
+  if (c.publish_path) {
+    // Each message is the whole bounded path: only the latest matters.
+    path_writer_ =
+        CreateWriter(participant, publisher, &path_type_, c.path_topic, DefaultWriterQos(1), error);
+    if (!path_writer_) return false;
+  }
+  if (c.publish_registered_points) {
+    // Reliable matches both reliable and best-effort readers (RViz either way); depth 2 bounds
+    // the memory held for slow readers.
+    registered_writer_ = CreateWriter(participant, publisher, cloud_type, c.registered_points_topic,
+                                      DefaultWriterQos(2), error);
+    if (!registered_writer_) return false;
+  }
+  return true;
+}
+
+void NodeOutputs::Publish(const ScanResult& r, const Eigen::Vector3d& angular_rate,
+                          const sensor_msgs::msg::PointCloud2* input) {
+  bridge::OdometryFrames frames{config_.odom_frame, config_.base_frame};
+  nav_msgs::msg::Odometry odom = bridge::ToOdometryMsg(r, frames, angular_rate);
+  odometry_writer_->write(&odom);
+  if (tf_writer_) {
+    tf2_msgs::msg::TFMessage tf = bridge::ToTfMessage(r, frames);
+    tf_writer_->write(&tf);
+  }
+  if (path_writer_) {
+    path_.poses().push_back(bridge::ToPoseStamped(r, config_.odom_frame));
+    if (path_.poses().size() > static_cast<size_t>(config_.path_max_poses)) {
+      path_.poses().erase(path_.poses().begin());
+    }
+    path_.header() = path_.poses().back().header();
+    path_writer_->write(&path_);
+  }
+  if (planes_writer_) {
+    // The facade's built-in skeleton tracker (kPpf) reports its world-frame window after each
+    // scan; the message carries the planes fitted in this scan (missed_scans == 0), world = odom
+    // frame. In kNN mode the message is empty, still one per scan.
+    std::vector<SkeletonPlane> fitted;
+    for (const SkeletonPlane& sp : r.skeleton_planes) {
+      if (sp.missed_scans == 0) fitted.push_back(sp);
+    }
+    ppf_msgs::msg::SkeletonPlaneArray planes =
+        bridge::ToSkeletonPlaneArray(fitted, r.stamp_s, config_.odom_frame);
+    planes_writer_->write(&planes);
+  }
+  if (registered_writer_ && input) PublishRegistered(r, *input);
+  trajectory_.push_back({r.stamp_s, r.T_world_imu});
+}
+
+// Input points moved to the odom frame with the scan-end pose (not de-skewed: the core keeps
+// its de-skewed cloud internal). x, y, z float32 only.
+void NodeOutputs::PublishRegistered(const ScanResult& r, const sensor_msgs::msg::PointCloud2& in) {
+  int ox = -1, oy = -1, oz = -1;
+  for (const auto& f : in.fields()) {
+    if (f.datatype() != 7) continue;
+    if (f.name() == "x") ox = static_cast<int>(f.offset());
+    if (f.name() == "y") oy = static_cast<int>(f.offset());
+    if (f.name() == "z") oz = static_cast<int>(f.offset());
+  }
+  if (ox < 0 || oy < 0 || oz < 0 || in.is_bigendian()) return;
+  const size_t n = static_cast<size_t>(in.width()) * in.height();
+  const size_t step = in.point_step();
+  if (step == 0 || in.data().size() < n * step) return;
+  // Written through the input's validating type (see Create).
+  Validated<sensor_msgs::msg::PointCloud2> wrapped;
+  sensor_msgs::msg::PointCloud2& out = wrapped.msg;
+  out.header().stamp(bridge::TimeFromSeconds(r.stamp_s));
+  out.header().frame_id(config_.odom_frame);
+  out.height(1);
+  const char* names[] = {"x", "y", "z"};
+  for (uint32_t i = 0; i < 3; ++i) {
+    sensor_msgs::msg::PointField f;
+    f.name(names[i]);
+    f.offset(4 * i);
+    f.datatype(7);
+    f.count(1);
+    out.fields().push_back(f);
+  }
+  out.point_step(12);
+  out.is_bigendian(false);
+  out.is_dense(true);
+  std::vector<uint8_t>& data = out.data();
+  data.resize(n * 12);
+  const Eigen::Isometry3d& T_world_lidar = r.T_world_lidar;
+  size_t kept = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const uint8_t* p = in.data().data() + i * step;
+    float v[3];
+    std::memcpy(&v[0], p + ox, 4);
+    std::memcpy(&v[1], p + oy, 4);
+    std::memcpy(&v[2], p + oz, 4);
+    if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2])) continue;
+    const Eigen::Vector3d w = T_world_lidar * Eigen::Vector3d(v[0], v[1], v[2]);
+    const float o[3] = {static_cast<float>(w.x()), static_cast<float>(w.y()),
+                        static_cast<float>(w.z())};
+    std::memcpy(data.data() + kept * 12, o, 12);
+    ++kept;
+  }
+  data.resize(kept * 12);
+  out.width(static_cast<uint32_t>(kept));
+  out.row_step(static_cast<uint32_t>(kept * 12));
+  registered_writer_->write(&wrapped);
+}
+
+bool NodeOutputs::WriteTum(std::string* error) const {
+  std::ofstream out(config_.tum_file);
+  if (!out) {
+    *error = "cannot write trajectory file '" + config_.tum_file + "'";
+    return false;
+  }
+  out << std::fixed;
+  for (const Pose& pose : trajectory_) {
+    const Eigen::Vector3d p = pose.T_world_imu.translation();
+    Eigen::Quaterniond q(pose.T_world_imu.linear());
+    q.normalize();
+    out << std::setprecision(9) << pose.stamp_s << ' ' << p.x() << ' ' << p.y() << ' ' << p.z()
+        << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
+  }
+  out.flush();
+  if (!out) {
+    *error = "error writing '" + config_.tum_file + "'";
+    return false;
+  }
+  return true;
+}
+
+void NodeOutputs::WaitForAcknowledgments() {
+  if (odometry_writer_) odometry_writer_->wait_for_acknowledgments({1, 0});
+}
+
+}  // namespace ppf::dds

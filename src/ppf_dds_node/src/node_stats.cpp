@@ -1,0 +1,127 @@
+#include "node_stats.hpp"
+
+#include <iomanip>
+#include <sstream>
+
+namespace ppf::dds {
+
+namespace {
+
+double MsBetween(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+}  // namespace
+
+uint64_t NodeStats::Add(uint64_t NodeSummary::*counter, uint64_t n) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  summary_.*counter += n;
+  return summary_.*counter;
+}
+
+void NodeStats::CountResult(const ScanResult& r) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++summary_.scans_processed;
+  summary_.last_status = StatusName(r.status);
+  if (r.status == Status::kRejected) ++summary_.scans_rejected;
+  if (r.status == Status::kInitializing) ++summary_.scans_initializing;
+  if (r.status == Status::kReset) ++summary_.resets;
+  if (r.status == Status::kDegenerate) ++summary_.degenerate;
+  summary_.points_nonfinite += r.dropped_nan;
+}
+
+void NodeStats::AddPublished(const ScanTiming& t) {
+  const double latency = MsBetween(t.received, t.published);
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++summary_.odometry_published;
+  latency_ms_.Add(latency);
+  core_time_ms_.Add(t.core_ms);
+  imu_wait_ms_.Add(t.imu_wait_ms);
+  decode_ms_.Add(t.decode_ms);
+  queue_ms_.Add(t.queue_ms);
+  behind_core_ms_.Add(t.behind_core_ms);
+  publish_ms_.Add(MsBetween(t.publish_start, t.published));
+  // Node overhead: everything between DDS receive and publish that is not the core working on
+  // this scan, waiting for the core to finish earlier scans, or waiting for the IMU that covers
+  // the scan end (the last two are reported apart).
+  overhead_ms_.Add(latency - t.core_ms - t.imu_wait_ms - t.behind_core_ms);
+}
+
+NodeSummary NodeStats::Snapshot() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  NodeSummary s = summary_;
+  s.latency_p50_ms = latency_ms_.Percentile(50);
+  s.latency_p99_ms = latency_ms_.Percentile(99);
+  s.latency_max_ms = latency_ms_.Max();
+  s.core_p50_ms = core_time_ms_.Percentile(50);
+  s.core_p99_ms = core_time_ms_.Percentile(99);
+  s.overhead_p50_ms = overhead_ms_.Percentile(50);
+  s.overhead_p99_ms = overhead_ms_.Percentile(99);
+  s.overhead_max_ms = overhead_ms_.Max();
+  s.imu_wait_p50_ms = imu_wait_ms_.Percentile(50);
+  s.imu_wait_p99_ms = imu_wait_ms_.Percentile(99);
+  s.decode_p50_ms = decode_ms_.Percentile(50);
+  s.decode_p99_ms = decode_ms_.Percentile(99);
+  s.queue_p50_ms = queue_ms_.Percentile(50);
+  s.queue_p99_ms = queue_ms_.Percentile(99);
+  s.behind_core_p50_ms = behind_core_ms_.Percentile(50);
+  s.behind_core_p99_ms = behind_core_ms_.Percentile(99);
+  s.publish_p50_ms = publish_ms_.Percentile(50);
+  s.publish_p99_ms = publish_ms_.Percentile(99);
+  return s;
+}
+
+std::string NodeStats::PeriodicLine(size_t* latency_mark, const QueueFill& queues) const {
+  NodeSummary s;
+  double lat50, lat99, ovh99;
+  size_t n;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    s = summary_;
+    n = latency_ms_.count();
+    lat50 = latency_ms_.PercentileSince(*latency_mark, 50);
+    lat99 = latency_ms_.PercentileSince(*latency_mark, 99);
+    ovh99 = overhead_ms_.PercentileSince(*latency_mark, 99);
+  }
+  std::ostringstream o;
+  o << std::fixed << std::setprecision(2)
+    << "status=" << (s.last_status.empty() ? "waiting" : s.last_status)
+    << " scans rx=" << s.scans_received << " proc=" << s.scans_processed
+    << " odom=" << s.odometry_published << " dropped=" << s.scans_dropped
+    << " malformed=" << s.scans_malformed + s.imu_malformed << " imu rx=" << s.imu_received
+    << " queues scan=" << queues.scans << "/" << queues.scan_capacity << " imu=" << queues.imus
+    << " | last " << (n - *latency_mark) << " scans: latency p50=" << lat50 << " p99=" << lat99
+    << " ms, overhead p99=" << ovh99 << " ms";
+  *latency_mark = n;
+  return o.str();
+}
+
+std::string NodeStats::FormatSummary(const NodeSummary& s) {
+  std::ostringstream o;
+  o << std::fixed << std::setprecision(3) << "scans_received=" << s.scans_received
+    << " scans_processed=" << s.scans_processed << " odometry_published=" << s.odometry_published
+    << " scans_dropped=" << s.scans_dropped << " scans_malformed=" << s.scans_malformed
+    << " scans_rejected=" << s.scans_rejected << " scans_initializing=" << s.scans_initializing
+    << " resets=" << s.resets << " degenerate=" << s.degenerate
+    << " imu_received=" << s.imu_received << " imu_malformed=" << s.imu_malformed
+    << " imu_overflow=" << s.imu_overflow << " imu_out_of_order=" << s.imu_out_of_order
+    << " time_jumps=" << s.time_jumps << " scans_late=" << s.scans_late
+    << " imu_late=" << s.imu_late << " scans_lost=" << s.scans_lost << " imu_lost=" << s.imu_lost
+    << " scans_empty=" << s.scans_empty << " scans_too_large=" << s.scans_too_large
+    << " scans_bad_stamp=" << s.scans_bad_stamp << " points_nonfinite=" << s.points_nonfinite
+    << " imu_duplicate=" << s.imu_duplicate << " imu_outliers=" << s.imu_outliers
+    << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
+    << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
+    << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms
+    << " overhead_p99_ms=" << s.overhead_p99_ms << " overhead_max_ms=" << s.overhead_max_ms
+    << " imu_wait_p50_ms=" << s.imu_wait_p50_ms << " imu_wait_p99_ms=" << s.imu_wait_p99_ms
+    << " decode_p50_ms=" << s.decode_p50_ms << " decode_p99_ms=" << s.decode_p99_ms
+    << " queue_p50_ms=" << s.queue_p50_ms << " queue_p99_ms=" << s.queue_p99_ms
+    << " behind_core_p50_ms=" << s.behind_core_p50_ms
+    << " behind_core_p99_ms=" << s.behind_core_p99_ms << " publish_p50_ms=" << s.publish_p50_ms
+    << " publish_p99_ms=" << s.publish_p99_ms
+    << " last_status=" << (s.last_status.empty() ? "none" : s.last_status);
+  return o.str();
+}
+
+}  // namespace ppf::dds

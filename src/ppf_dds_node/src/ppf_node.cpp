@@ -2,10 +2,8 @@
 
 #include <cmath>
 #include <condition_variable>
-#include <cstdio>
 #include <deque>
 #include <limits>
-#include <map>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -14,22 +12,17 @@
 #include <fastdds/dds/publisher/DataWriter.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
-#include <fastdds/dds/subscriber/DataReaderListener.hpp>
-#include <fastdds/dds/subscriber/SampleInfo.hpp>
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include "node_inputs.hpp"
 #include "node_outputs.hpp"
 #include "node_stats.hpp"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
 #include "ppf_bridge/msg_traits.hpp"
 #include "ppf_core/config_yaml.hpp"
 #include "ppf_core/lio_ppf.hpp"
-#include "ppf_dds_node/gap_counter.hpp"
 #include "ppf_dds_node/logging.hpp"
-#include "ppf_dds_node/time_ordered_queue.hpp"
-#include "ppf_dds_node/validating_type.hpp"
 
 namespace ppf::dds {
 
@@ -41,17 +34,6 @@ namespace {
 double MsBetween(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
-
-struct ScanItem {
-  std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;
-  Clock::time_point received;         // listener entry, before the sample is taken and decoded
-  Clock::time_point queued;           // pushed into the scan queue
-  int64_t core_busy_ns_at_queue = 0;  // NodeStats::core_busy_ns() when queued
-};
-
-struct ImuItem {
-  ImuSample sample;
-};
 
 // Per scan handed to the core, in AddScan order (the core returns results in input order).
 struct PendingScan {
@@ -67,258 +49,38 @@ struct PendingScan {
 }  // namespace
 
 struct PpfNode::Impl {
-  // Cloud buffers are recycled: a fresh multi-MB vector per scan costs page faults and a memset
-  // in the listener (measured: the bulk of its p99). Declared first so that it outlives every
-  // queue and pending scan holding a pooled message.
-  std::mutex pool_mutex;
-  std::vector<std::unique_ptr<sensor_msgs::msg::PointCloud2>> pool;
-  static constexpr size_t kPoolMax = 8;
-
-  std::unique_ptr<sensor_msgs::msg::PointCloud2> TakeFromPool() {
-    std::lock_guard<std::mutex> lock(pool_mutex);
-    if (pool.empty()) return std::make_unique<sensor_msgs::msg::PointCloud2>();
-    auto m = std::move(pool.back());
-    pool.pop_back();
-    return m;
-  }
-  void ReturnToPool(sensor_msgs::msg::PointCloud2* m) {
-    std::lock_guard<std::mutex> lock(pool_mutex);
-    if (pool.size() < kPoolMax) {
-      pool.emplace_back(m);
-    } else {
-      delete m;
-    }
-  }
-
   explicit Impl(const NodeConfig& c)
       : config(c),
-        scan_queue(static_cast<size_t>(c.scan_queue_capacity)),
-        imu_queue(static_cast<size_t>(c.imu_queue_capacity)),
-        malformed_log(c.malformed_log_interval_s),
-        imu_malformed_log(c.malformed_log_interval_s),
-        drop_log(c.malformed_log_interval_s),
-        empty_log(c.malformed_log_interval_s),
-        large_log(c.malformed_log_interval_s),
-        stamp_log(c.malformed_log_interval_s),
+        inputs(c, &stats),
+        ahead_log(c.malformed_log_interval_s),
         nonfinite_log(c.malformed_log_interval_s),
-        jump_log(c.malformed_log_interval_s),
         late_log(c.malformed_log_interval_s),
         imu_late_log(c.malformed_log_interval_s),
         imu_dup_log(c.malformed_log_interval_s),
         outlier_log(c.malformed_log_interval_s) {}
-
-  // ---- listeners (DDS threads) ----------------------------------------------------------------
-  class CloudListener : public fdds::DataReaderListener {
-   public:
-    explicit CloudListener(Impl* impl) : impl_(impl) {}
-    void on_data_available(fdds::DataReader* reader) override { impl_->OnClouds(reader); }
-    void on_subscription_matched(fdds::DataReader*,
-                                 const fdds::SubscriptionMatchedStatus& s) override {
-      Log(Level::kInfo, "points: " + std::to_string(s.current_count) + " publisher(s) matched");
-    }
-    void on_requested_incompatible_qos(fdds::DataReader*,
-                                       const fdds::RequestedIncompatibleQosStatus&) override {
-      Log(Level::kWarn, "points: a publisher with incompatible QoS was ignored (reliability?)");
-    }
-
-   private:
-    Impl* impl_;
-  };
-  class ImuListener : public fdds::DataReaderListener {
-   public:
-    explicit ImuListener(Impl* impl) : impl_(impl) {}
-    void on_data_available(fdds::DataReader* reader) override { impl_->OnImu(reader); }
-    void on_subscription_matched(fdds::DataReader*,
-                                 const fdds::SubscriptionMatchedStatus& s) override {
-      Log(Level::kInfo, "imu: " + std::to_string(s.current_count) + " publisher(s) matched");
-    }
-    void on_requested_incompatible_qos(fdds::DataReader*,
-                                       const fdds::RequestedIncompatibleQosStatus&) override {
-      Log(Level::kWarn, "imu: a publisher with incompatible QoS was ignored (reliability?)");
-    }
-
-   private:
-    Impl* impl_;
-  };
-
-  void OnClouds(fdds::DataReader* reader) {
-    while (true) {
-      const Clock::time_point received = Clock::now();
-      Validated<sensor_msgs::msg::PointCloud2> sample;
-      std::unique_ptr<sensor_msgs::msg::PointCloud2> buffer = TakeFromPool();
-      sample.msg = std::move(*buffer);  // moves keep the data vector's capacity
-      fdds::SampleInfo info;
-      const bool taken = reader->take_next_sample(&sample, &info) == ReturnCode_t::RETCODE_OK;
-      *buffer = std::move(sample.msg);
-      if (!taken) {
-        ReturnToPool(buffer.release());
-        break;
-      }
-      if (!info.valid_data || !accepting.load()) {
-        ReturnToPool(buffer.release());
-        continue;
-      }
-      if (const uint64_t missing =
-              cloud_gaps.Count(info.sample_identity.writer_guid(),
-                               info.sample_identity.sequence_number().to64long())) {
-        stats.Add(&NodeSummary::scans_lost, missing);
-        lost_log.Log(Level::kWarn, "points: " + std::to_string(missing) +
-                                       " scan(s) never reached the node (transport loss or "
-                                       "reader history overwritten)");
-      }
-      stats.Add(&NodeSummary::scans_received);
-      // Size first: a cloud declaring more points than the bound is refused before anything
-      // looks at its data.
-      if (sample.valid && !CheckCloudSize(*buffer)) {
-        ReturnToPool(buffer.release());
-        continue;
-      }
-      std::string error;
-      if (sample.valid) {
-        if (!bridge::ToCloudView(*buffer, &error)) sample.valid = false;
-      } else {
-        error = sample.error;
-      }
-      if (!sample.valid) {
-        stats.Add(&NodeSummary::scans_malformed);
-        malformed_log.Log(Level::kWarn, "rejected malformed PointCloud2 on " +
-                                            RosTopicToDds(config.points_topic) + " (" +
-                                            std::to_string(sample.payload_size) +
-                                            " bytes): " + error);
-        ReturnToPool(buffer.release());
-        continue;
-      }
-      const double stamp = bridge::ToSeconds(buffer->header().stamp());
-      if (!CheckCloudUsable(*buffer, stamp)) {
-        ReturnToPool(buffer.release());
-        continue;
-      }
-      std::shared_ptr<sensor_msgs::msg::PointCloud2> msg(
-          buffer.release(), [this](sensor_msgs::msg::PointCloud2* m) { ReturnToPool(m); });
-      auto pushed = scan_queue.Push(
-          stamp, ScanItem{std::move(msg), received, Clock::now(), stats.core_busy_ns()});
-      if (pushed.time_jump) {
-        stats.Add(&NodeSummary::time_jumps);
-        jump_log.Log(Level::kWarn,
-                     "scan time jumped back to " + std::to_string(stamp) +
-                         " (bag loop? clock reset? a stale scan?): the core restarts only if "
-                         "the IMU stream jumps back too, otherwise the scan is dropped as late");
-      }
-      if (pushed.evicted) {
-        stats.Add(&NodeSummary::scans_dropped);
-        drop_log.Log(Level::kWarn,
-                     "core behind: dropped the oldest queued scan (stamp " +
-                         std::to_string(bridge::ToSeconds(pushed.evicted->msg->header().stamp())) +
-                         ")");
-      }
-    }
-  }
-
-  bool CheckCloudSize(const sensor_msgs::msg::PointCloud2& m) {
-    const uint64_t n = static_cast<uint64_t>(m.width()) * m.height();
-    if (n <= static_cast<uint64_t>(config.max_cloud_points)) return true;
-    stats.Add(&NodeSummary::scans_too_large);
-    large_log.Log(Level::kWarn, std::to_string(n) + "-point PointCloud2 on " +
-                                    RosTopicToDds(config.points_topic) +
-                                    " exceeds queues.max_cloud_points " +
-                                    std::to_string(config.max_cloud_points) + ": skipped");
-    return false;
-  }
-
-  // Well-formed clouds the core cannot use (listener thread). Refused here, before the scan queue:
-  // queued, they would evict good scans, and their stamps would move the queue's timeline.
-  bool CheckCloudUsable(const sensor_msgs::msg::PointCloud2& m, double stamp) {
-    const uint64_t n = static_cast<uint64_t>(m.width()) * m.height();
-    const std::string on = " PointCloud2 on " + RosTopicToDds(config.points_topic);
-    if (n == 0) {
-      stats.Add(&NodeSummary::scans_empty);
-      empty_log.Log(Level::kWarn, "empty" + on + " (stamp " + std::to_string(stamp) +
-                                      "): nothing to register, skipped");
-      return false;
-    }
-    if (!(stamp > 0.0)) {
-      stats.Add(&NodeSummary::scans_bad_stamp);
-      stamp_log.Log(Level::kWarn, on.substr(1) + " has stamp " + std::to_string(stamp) +
-                                      " (unset clock?): skipped");
-      return false;
-    }
-    return true;
-  }
-
-  void OnImu(fdds::DataReader* reader) {
-    OnImuSamples(reader);
-    // Wake the executor: a queued scan may be waiting for IMU that covers its end.
-    scan_queue.Notify();
-  }
-
-  void OnImuSamples(fdds::DataReader* reader) {
-    while (true) {
-      Validated<sensor_msgs::msg::Imu> sample;
-      fdds::SampleInfo info;
-      if (reader->take_next_sample(&sample, &info) != ReturnCode_t::RETCODE_OK) break;
-      if (!info.valid_data) continue;
-      if (!accepting.load()) continue;
-      if (const uint64_t missing =
-              imu_gaps.Count(info.sample_identity.writer_guid(),
-                             info.sample_identity.sequence_number().to64long())) {
-        const uint64_t total = stats.Add(&NodeSummary::imu_lost, missing);
-        // Loud: the filter integrates every IMU sample (the core also sees the time gap).
-        Log(Level::kError, "imu: " + std::to_string(missing) +
-                               " sample(s) never reached the node (transport loss or reader "
-                               "history overwritten; total " +
-                               std::to_string(total) + ")");
-      }
-      std::string error = sample.error;
-      std::optional<ImuSample> imu;
-      if (sample.valid) imu = bridge::ToImuSample(sample.msg, &error);
-      stats.Add(&NodeSummary::imu_received);
-      if (!imu) {
-        stats.Add(&NodeSummary::imu_malformed);
-        imu_malformed_log.Log(Level::kWarn, "rejected malformed Imu on " +
-                                                RosTopicToDds(config.imu_topic) + ": " + error);
-        continue;
-      }
-      auto pushed = imu_queue.Push(imu->stamp_s, ImuItem{*imu});
-      if (pushed.out_of_order) stats.Add(&NodeSummary::imu_out_of_order);
-      if (pushed.time_jump) {
-        stats.Add(&NodeSummary::time_jumps);
-        jump_log.Log(Level::kWarn, "IMU time jumped back to " + std::to_string(imu->stamp_s) +
-                                       " (bag loop? clock reset? an outlier?): the core restarts "
-                                       "once the following samples continue from there");
-      }
-      if (pushed.evicted) {
-        const uint64_t total = stats.Add(&NodeSummary::imu_overflow);
-        // Loud on purpose: losing IMU silently would corrupt the state estimate.
-        Log(Level::kError,
-            "IMU queue full (" + std::to_string(imu_queue.capacity()) +
-                "): dropped IMU sample at " + std::to_string(pushed.evicted->sample.stamp_s) +
-                "; the core is stalled (total IMU dropped: " + std::to_string(total) + ")");
-      }
-    }
-  }
 
   // ---- executor thread ------------------------------------------------------------------------
   void ExecutorLoop() {
     uint64_t seen = 0;
     while (true) {
       const bool draining = drain_requested.load();
-      if (!draining) scan_queue.WaitForChange(&seen, std::chrono::milliseconds(50));
+      if (!draining) scan_queue().WaitForChange(&seen, std::chrono::milliseconds(50));
       // IMU first: a scan can only be processed once IMU covers its end.
-      std::deque<std::pair<double, ImuItem>> imus;
-      imu_queue.PopAll(&imus);
-      for (auto& [stamp, item] : imus) FeedImu(item.sample);
+      std::deque<std::pair<double, ImuSample>> imus;
+      imu_queue().PopAll(&imus);
+      for (auto& [stamp, sample] : imus) FeedImu(sample);
       if (!imus.empty() && !pending.empty()) RunCore(false);
-      while (auto scan = scan_queue.PopFront()) {
+      while (auto scan = scan_queue().PopFront()) {
         if (AcceptScanStamp(scan->first)) {
           AddScan(std::move(scan->second));
           RunCore(false);
         }
         // IMU that arrived while the core worked: feed it before the next scan.
         imus.clear();
-        imu_queue.PopAll(&imus);
-        for (auto& [stamp, item] : imus) FeedImu(item.sample);
+        imu_queue().PopAll(&imus);
+        for (auto& [stamp, sample] : imus) FeedImu(sample);
       }
-      if (draining && scan_queue.Size() == 0 && imu_queue.Size() == 0) {
+      if (draining && scan_queue().Size() == 0 && imu_queue().Size() == 0) {
         DropImuCandidates();                  // the stream ended before confirming them
         if (!pending.empty()) RunCore(true);  // remaining scans, IMU extrapolated
         break;
@@ -366,7 +128,7 @@ struct PpfNode::Impl {
       if (back) {
         // Scans of the old timeline still queued (IMU is fed before scans) are finished first.
         while (auto old =
-                   scan_queue.PopFrontIf([&](double stamp) { return stamp > first + kJumpS; })) {
+                   scan_queue().PopFrontIf([&](double stamp) { return stamp > first + kJumpS; })) {
           if (AcceptScanStamp(old->first)) AddScan(std::move(old->second));
         }
         RestartCore("IMU time jumped back by " + std::to_string(last_imu_fed - first) + " s");
@@ -426,7 +188,7 @@ struct PpfNode::Impl {
     const bool have_imu = std::isfinite(last_imu_fed);
     if (have_imu && stamp > last_imu_fed + kScanAheadS) {
       stats.Add(&NodeSummary::scans_bad_stamp);
-      stamp_log.Log(Level::kWarn, "scan at " + std::to_string(stamp) + " is " +
+      ahead_log.Log(Level::kWarn, "scan at " + std::to_string(stamp) + " is " +
                                       std::to_string(stamp - last_imu_fed) +
                                       " s ahead of the IMU stream (far-future stamp, or the IMU "
                                       "fell silent): skipped");
@@ -513,40 +275,29 @@ struct PpfNode::Impl {
   }
 
   void FlushInputLogs() {
-    for (RateLimitedLog* l : {&malformed_log, &imu_malformed_log, &drop_log, &empty_log, &large_log,
-                              &stamp_log, &nonfinite_log, &status_log, &lost_log, &jump_log,
-                              &late_log, &imu_late_log, &imu_dup_log, &outlier_log}) {
+    inputs.FlushLogs();
+    for (RateLimitedLog* l : {&ahead_log, &nonfinite_log, &status_log, &late_log, &imu_late_log,
+                              &imu_dup_log, &outlier_log}) {
       l->Flush();
     }
   }
 
   void LogPeriodic(size_t* latency_mark) {
     FlushInputLogs();
-    QueueFill fill;
-    fill.scans = scan_queue.Size();
-    fill.scan_capacity = scan_queue.capacity();
-    fill.imus = imu_queue.Size();
-    Log(Level::kInfo, stats.PeriodicLine(latency_mark, fill));
+    Log(Level::kInfo, stats.PeriodicLine(latency_mark, inputs.Fill()));
   }
 
   NodeConfig config;
   NodeStats stats;
+  NodeInputs inputs;
   NodeOutputs outputs{config};
   std::unique_ptr<LioPpf> core;
 
   fdds::DomainParticipant* participant = nullptr;
   fdds::Publisher* publisher = nullptr;
   fdds::Subscriber* subscriber = nullptr;
-  fdds::DataReader* points_reader = nullptr;
-  fdds::DataReader* imu_reader = nullptr;
-  fdds::TypeSupport cloud_in_type{new ValidatingPubSubType<sensor_msgs::msg::PointCloud2>()};
-  fdds::TypeSupport imu_in_type{new ValidatingPubSubType<sensor_msgs::msg::Imu>()};
-  std::unique_ptr<CloudListener> cloud_listener;
-  std::unique_ptr<ImuListener> imu_listener;
-
-  TimeOrderedQueue<ScanItem> scan_queue;
-  TimeOrderedQueue<ImuItem> imu_queue;
-  std::atomic<bool> accepting{true};
+  ScanQueue& scan_queue() { return inputs.scans(); }
+  ImuQueue& imu_queue() { return inputs.imus(); }
   std::atomic<bool> drain_requested{false};
   std::atomic<bool> stop_requested{false};
   std::mutex stop_mutex;
@@ -559,16 +310,9 @@ struct PpfNode::Impl {
   std::deque<PendingScan> pending;
   Eigen::Vector3d last_gyro = Eigen::Vector3d::Zero();
 
-  RateLimitedLog malformed_log;
-  RateLimitedLog imu_malformed_log;
-  RateLimitedLog drop_log;
-  RateLimitedLog empty_log, large_log, stamp_log, nonfinite_log;
+  // One limiter per kind of defect, so that one kind's burst does not hide another's line.
+  RateLimitedLog ahead_log, nonfinite_log, late_log, imu_late_log, imu_dup_log, outlier_log;
   RateLimitedLog status_log{1.0};
-  RateLimitedLog lost_log{1.0};
-  // Input defects, one limiter per kind so that one kind's burst does not hide another's line.
-  RateLimitedLog jump_log, late_log, imu_late_log, imu_dup_log, outlier_log;
-  GapCounter cloud_gaps, imu_gaps;  // each used by its reader's listener only
-
   bool torn_down = false;
 
   void TearDown() {
@@ -624,35 +368,10 @@ bool PpfNode::init(std::string* error) {
     return false;
   }
 
-  if (!m.outputs.Create(m.participant, m.publisher, &m.cloud_in_type, error)) return false;
+  if (!m.outputs.Create(m.participant, m.publisher, m.inputs.cloud_type(), error)) return false;
 
   // Readers last: data may flow as soon as they exist.
-  if (m.cloud_in_type.register_type(m.participant) != ReturnCode_t::RETCODE_OK ||
-      m.imu_in_type.register_type(m.participant) != ReturnCode_t::RETCODE_OK) {
-    *error = "input types already registered differently";
-    return false;
-  }
-  fdds::Topic* points_topic = m.participant->create_topic(
-      RosTopicToDds(c.points_topic), m.cloud_in_type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
-  fdds::Topic* imu_topic = m.participant->create_topic(
-      RosTopicToDds(c.imu_topic), m.imu_in_type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
-  if (!points_topic || !imu_topic) {
-    *error = "cannot create input topics";
-    return false;
-  }
-  m.cloud_listener = std::make_unique<Impl::CloudListener>(&m);
-  m.imu_listener = std::make_unique<Impl::ImuListener>(&m);
-  m.points_reader = m.subscriber->create_datareader(
-      points_topic, SensorReaderQos(c.sensor_reliability, c.sensor_depth), m.cloud_listener.get());
-  // IMU: deeper reader history than clouds, a burst of 400 Hz samples must not be overwritten
-  // before the listener takes them.
-  m.imu_reader = m.subscriber->create_datareader(
-      imu_topic, SensorReaderQos(c.sensor_reliability, std::max(c.sensor_depth, 100)),
-      m.imu_listener.get());
-  if (!m.points_reader || !m.imu_reader) {
-    *error = "cannot create input readers";
-    return false;
-  }
+  if (!m.inputs.Create(m.participant, m.subscriber, error)) return false;
   Log(Level::kInfo,
       "ppf_node up: domain " + std::to_string(c.participant.domain_id) + ", in " +
           RosTopicToDds(c.points_topic) + " + " + RosTopicToDds(c.imu_topic) + " (" +
@@ -683,9 +402,9 @@ void PpfNode::run() {
     }
   }
   // Drain: stop accepting, process what is queued, flush the core.
-  m.accepting = false;
+  m.inputs.StopAccepting();
   m.drain_requested = true;
-  m.scan_queue.Notify();
+  m.scan_queue().Notify();
   executor.join();
   m.FlushInputLogs();  // the counts of bursts no later line reported
   if (!m.config.tum_file.empty()) {

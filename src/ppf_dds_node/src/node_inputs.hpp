@@ -1,0 +1,98 @@
+// NodeInputs: the node's two DDS readers and what happens on their listener threads: take the
+// sample (into a recycled cloud buffer), count sequence gaps, validate, and push into the bounded
+// time-ordered queues that the executor drains. Listeners never wait for the core.
+//
+// Locking: Fast DDS calls the listeners with its own locks held, so they only take the short
+// internal locks of the buffer pool, the queues and NodeStats; nothing here calls into Fast DDS
+// while holding one of ours.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <string>
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+
+#include "node_stats.hpp"
+#include "ppf_bridge/msg_traits.hpp"
+#include "ppf_core/lio_ppf.hpp"
+#include "ppf_dds_node/gap_counter.hpp"
+#include "ppf_dds_node/logging.hpp"
+#include "ppf_dds_node/node_config.hpp"
+#include "ppf_dds_node/time_ordered_queue.hpp"
+
+namespace ppf::dds {
+
+// A validated cloud on its way to the core, with the times its latency is split by.
+struct ScanItem {
+  // Returns its buffer to the pool when the last holder lets go (queue, executor, outputs).
+  std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;
+  std::chrono::steady_clock::time_point received;  // listener entry, before take + decode
+  std::chrono::steady_clock::time_point queued;    // pushed into the scan queue
+  int64_t core_busy_ns_at_queue = 0;               // NodeStats::core_busy_ns() when queued
+};
+
+using ScanQueue = TimeOrderedQueue<ScanItem>;
+using ImuQueue = TimeOrderedQueue<ImuSample>;
+
+class NodeInputs {
+ public:
+  NodeInputs(const NodeConfig& config, NodeStats* stats);
+  ~NodeInputs();
+  NodeInputs(const NodeInputs&) = delete;
+  NodeInputs& operator=(const NodeInputs&) = delete;
+
+  // The validating PointCloud2 type, shared with the registered_points writer (one type name per
+  // participant).
+  eprosima::fastdds::dds::TypeSupport* cloud_type() { return &cloud_type_; }
+
+  // Registers the input types and creates the topics and readers: data flows as soon as this
+  // returns, so call it last. The participant must be torn down before this object goes away.
+  bool Create(eprosima::fastdds::dds::DomainParticipant* participant,
+              eprosima::fastdds::dds::Subscriber* subscriber, std::string* error);
+
+  // Samples taken from now on are discarded (shutdown: what is queued is still processed).
+  void StopAccepting() { accepting_ = false; }
+
+  ScanQueue& scans() { return scan_queue_; }
+  ImuQueue& imus() { return imu_queue_; }
+  QueueFill Fill() const;
+
+  // Reports the suppressed tails of the rate-limited input logs.
+  void FlushLogs();
+
+ private:
+  class CloudPool;
+  class CloudListener;
+  class ImuListener;
+
+  void OnClouds(eprosima::fastdds::dds::DataReader* reader);
+  void OnImu(eprosima::fastdds::dds::DataReader* reader);
+  bool CheckCloudSize(const sensor_msgs::msg::PointCloud2& m);
+  bool CheckCloudUsable(const sensor_msgs::msg::PointCloud2& m, double stamp);
+
+  const NodeConfig config_;
+  NodeStats* const stats_;
+  // Shared with every pooled message's deleter, so a message may outlive this object.
+  std::shared_ptr<CloudPool> pool_;
+  ScanQueue scan_queue_;
+  ImuQueue imu_queue_;
+  std::atomic<bool> accepting_{true};
+
+  eprosima::fastdds::dds::TypeSupport cloud_type_;
+  eprosima::fastdds::dds::TypeSupport imu_type_;
+  std::unique_ptr<CloudListener> cloud_listener_;
+  std::unique_ptr<ImuListener> imu_listener_;
+  GapCounter cloud_gaps_, imu_gaps_;  // each used by its reader's listener only
+
+  // One limiter per kind of defect, so that one kind's burst does not hide another's line.
+  RateLimitedLog malformed_log_, imu_malformed_log_, drop_log_, empty_log_, large_log_, stamp_log_,
+      jump_log_;
+  RateLimitedLog lost_log_{1.0};
+};
+
+}  // namespace ppf::dds

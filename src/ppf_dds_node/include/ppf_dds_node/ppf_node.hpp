@@ -1,10 +1,12 @@
 // PpfNode: LIO-PPF on one DomainParticipant, ROS 2 wire compatible.
 //
-// Threads:
-//   DDS listener threads  decode + validate (ppf_bridge), push into bounded time-ordered queues;
-//                         never wait for the core
-//   executor thread       the only thread touching ppf::LioPpf; publishes the outputs
-//   run() caller          periodic diagnostics; on stop(): drain, flush, write TUM, tear down
+// Threads (and the part, under src/, that owns what each one works on):
+//   DDS listener threads  NodeInputs: decode + validate (ppf_bridge), push into bounded
+//                         time-ordered queues; never wait for the core
+//   executor thread       CoreExecutor: the only thread touching ppf::LioPpf; publishes the
+//                         results through NodeOutputs
+//   run() caller          periodic diagnostics (NodeStats); on stop(): drain, flush, write TUM,
+//                         tear down
 //
 // Usage (as in eProsima's examples): PpfNode node(config); node.init(&err); node.run() until
 // stop() is called (e.g. from a signal watcher); the destructor deletes all entities.

@@ -424,14 +424,29 @@ struct PpfNode::Impl {
 
   void Publish(const ScanResult& r, const PendingScan& p, double core_ms, double imu_wait_ms) {
     const Clock::time_point publish_start = Clock::now();
+    uint64_t scans_lost = 0, imu_lost = 0;
     {
       std::lock_guard<std::mutex> lock(stats_mutex);
+      scans_lost = summary.scans_lost;
+      imu_lost = summary.imu_lost;
       ++summary.scans_processed;
       summary.last_status = StatusName(r.status);
       if (r.status == Status::kRejected) ++summary.scans_rejected;
       if (r.status == Status::kInitializing) ++summary.scans_initializing;
       if (r.status == Status::kReset) ++summary.resets;
       if (r.status == Status::kDegenerate) ++summary.degenerate;
+      if (r.imu_gap_s > 0.0) {
+        ++summary.imu_gaps_bridged;
+        summary.imu_gap_max_s = std::max(summary.imu_gap_max_s, r.imu_gap_s);
+      }
+    }
+    if (r.imu_gap_s > 0.0) {
+      // Not rate limited: a gap is rare and the operator wants its size and what it cost.
+      std::ostringstream os;
+      os << std::fixed << std::setprecision(3) << "input gap: no IMU for " << r.imu_gap_s
+         << " s before the scan at " << r.stamp_s << "; bridged, odometry continues (lost so far: "
+         << scans_lost << " scans, " << imu_lost << " IMU samples)";
+      Log(Level::kWarn, os.str());
     }
     if (r.status == Status::kRejected || r.status == Status::kReset) {
       status_log.Log(Level::kWarn, std::string("core: ") + StatusName(r.status) + ": " + r.reason);
@@ -844,6 +859,7 @@ std::string PpfNode::FormatSummary(const NodeSummary& s) {
     << " imu_overflow=" << s.imu_overflow << " imu_out_of_order=" << s.imu_out_of_order
     << " time_jumps=" << s.time_jumps << " scans_late=" << s.scans_late
     << " imu_late=" << s.imu_late << " scans_lost=" << s.scans_lost << " imu_lost=" << s.imu_lost
+    << " imu_gaps_bridged=" << s.imu_gaps_bridged << " imu_gap_max_s=" << s.imu_gap_max_s
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

@@ -567,8 +567,11 @@ struct PpfNode::Impl {
 
   void Publish(const ScanResult& r, const PendingScan& p, double core_ms, double imu_wait_ms) {
     const Clock::time_point publish_start = Clock::now();
+    uint64_t scans_lost = 0, imu_lost = 0;
     {
       std::lock_guard<std::mutex> lock(stats_mutex);
+      scans_lost = summary.scans_lost;
+      imu_lost = summary.imu_lost;
       ++summary.scans_processed;
       summary.last_status = StatusName(r.status);
       if (r.status == Status::kRejected) ++summary.scans_rejected;
@@ -576,12 +579,24 @@ struct PpfNode::Impl {
       if (r.status == Status::kReset) ++summary.resets;
       if (r.status == Status::kDegenerate) ++summary.degenerate;
       summary.points_nonfinite += r.dropped_nan;
+      if (r.imu_gap_s > 0.0) {
+        ++summary.imu_gaps_bridged;
+        summary.imu_gap_max_s = std::max(summary.imu_gap_max_s, r.imu_gap_s);
+      }
     }
     if (r.dropped_nan > 0) {
       nonfinite_log.Log(Level::kWarn, "scan at " + std::to_string(r.scan_begin_s) + ": " +
                                           std::to_string(r.dropped_nan) + " of " +
                                           std::to_string(r.input_points) +
                                           " points non-finite (NaN/Inf), dropped");
+    }
+    if (r.imu_gap_s > 0.0) {
+      // Not rate limited: a gap is rare and the operator wants its size and what it cost.
+      std::ostringstream os;
+      os << std::fixed << std::setprecision(3) << "input gap: no IMU for " << r.imu_gap_s
+         << " s before the scan at " << r.stamp_s << "; bridged, odometry continues (lost so far: "
+         << scans_lost << " scans, " << imu_lost << " IMU samples)";
+      Log(Level::kWarn, os.str());
     }
     if (r.status == Status::kRejected || r.status == Status::kReset) {
       status_log.Log(Level::kWarn, std::string("core: ") + StatusName(r.status) + ": " + r.reason);
@@ -1010,6 +1025,7 @@ std::string PpfNode::FormatSummary(const NodeSummary& s) {
     << " scans_empty=" << s.scans_empty << " scans_too_large=" << s.scans_too_large
     << " scans_bad_stamp=" << s.scans_bad_stamp << " points_nonfinite=" << s.points_nonfinite
     << " imu_duplicate=" << s.imu_duplicate << " imu_outliers=" << s.imu_outliers
+    << " imu_gaps_bridged=" << s.imu_gaps_bridged << " imu_gap_max_s=" << s.imu_gap_max_s
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

@@ -126,8 +126,11 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   // later line carried; it is not an event of its own.
   const int unknown_lines = CountLinesWith(log, "has unknown datatype 42") -
                             CountLinesWith(log, "similar since the last line) last: ");
+  // How many lines pass depends on how fast the burst arrives (0.05 s interval here): under
+  // ThreadSanitizer the node takes it in slower (15 lines seen), so the bound is wider there.
   EXPECT_GE(unknown_lines, 2);
-  EXPECT_LE(unknown_lines, 10);
+  EXPECT_LE(unknown_lines, kUnderTsan ? 24 : 10);
+  EXPECT_GE(SuppressedIn(log, bad), 8) << "the burst was not rate limited";
   EXPECT_EQ(unknown_lines + SuppressedIn(log, bad), 32);
   EXPECT_EQ(SummaryField(s, "scans_malformed"), 8 + 32);
 

@@ -6,8 +6,9 @@
 #                              tests: unit tests, the core's end-to-end test, the simulator's, the
 #                              fuzz seed and regression replays
 #   scripts/sanitize.sh tsan   clang TSan build of ppf_dds_node (build-tsan/, install-tsan/) on top
-#                              of the Release install, then all its tests: node, replay, record,
-#                              transport, end-to-end, as-documented, Cyclone interop
+#                              of the Release install, then its tests: node, replay, record,
+#                              transport, end-to-end, as-documented, Cyclone interop (not the
+#                              multi-host one, see below)
 #
 # Why these subsets (2-core CI, 60 minutes in all): ppf_tools' tests drive the core through long
 # simulated runs (accuracy study, endurance) that take minutes in Release; under ASan they alone
@@ -92,7 +93,11 @@ case "$kind" in
     clang -O1 -shared -fPIC -o build-tsan/libppf_tsan_clocklock_shim.so "$SAN/tsan_clocklock_shim.c" || exit 1
     export LD_PRELOAD="$ROOT/build-tsan/libppf_tsan_clocklock_shim.so"
     source_setup install-tsan/setup.bash
-    run_tests build-tsan install-tsan ppf_dds_node
+    # test_multihost is left to the Release run: under TSan the node's listener is several times
+    # slower, and at real time with the kernel's 4 MB socket-buffer cap (a network namespace cannot
+    # raise net.core.rmem_max) 3 of 100 HDL-64 clouds were lost over UDP (counted, scans_lost=3).
+    # Its threads are the ones test_e2e runs here; its subject, loss across hosts, is not TSan's.
+    run_tests build-tsan install-tsan ppf_dds_node --ctest-args -E MultiHost
     ;;
   *)
     echo "usage: $0 asan|tsan" >&2

@@ -229,7 +229,10 @@ void Apply(const YAML::Node& root, Config* c, ConfigLoadReport* report) {
                      {"gyro_bias_noise", Num(&c->noise.gyro_bias)},
                      {"acc_bias_noise", Num(&c->noise.acc_bias)},
                      {"gravity_dir_noise", Num(&c->noise.gravity_dir)},
-                     {"max_gap", Num(&c->max_imu_gap_s)}};
+                     {"max_gap", Num(&c->max_imu_gap_s)},
+                     {"max_gap_bridge", Num(&c->max_imu_gap_bridge_s)},
+                     {"gap_acc_std", Num(&c->gap_acc_std)},
+                     {"gap_gyro_std", Num(&c->gap_gyro_std)}};
   const Table iekf = {
       {"max_iterations", Int(&c->iekf.max_iterations)},
       {"convergence_rot", Num(&c->iekf.convergence_rot_rad)},

@@ -103,18 +103,22 @@ IekfReport IekfUpdate(const IekfOptions& options, const Eigen::Isometry3d& T_imu
   bool have_A = false;
   const int max_iter = std::max(1, options.max_iterations);
 
+  std::vector<size_t> ends(providers.size());
+  bool reuse_rows = false;  // the first iteration converged: re-gate its matches, no new search
   for (int iter = 0; iter < max_iter; ++iter) {
     auto t0 = std::chrono::steady_clock::now();
     const Eigen::Isometry3d T_world_lidar = x.T_world_imu() * T_imu_lidar;
-    rows.clear();
     report.rows_per_provider.assign(providers.size(), 0);
-    std::vector<size_t> ends(providers.size());
-    for (size_t i = 0; i < providers.size(); ++i) {
-      providers[i]->ComputeRows(T_world_lidar, &rows);
-      ends[i] = rows.size();
+    if (!reuse_rows) {
+      rows.clear();
+      for (size_t i = 0; i < providers.size(); ++i) {
+        providers[i]->ComputeRows(T_world_lidar, &rows);
+        ends[i] = rows.size();
+      }
     }
-    if (iter > 0 && options.refined_gate > 0.0)
+    if (iter > 0 && options.refined_gate > 0.0) {
       RefineGate(options.refined_gate, T_world_lidar, &rows, &ends);
+    }
     for (size_t i = 0; i < providers.size(); ++i) {
       report.rows_per_provider[i] = static_cast<int>(ends[i] - (i == 0 ? 0 : ends[i - 1]));
     }
@@ -198,10 +202,16 @@ IekfReport IekfUpdate(const IekfOptions& options, const Eigen::Isometry3d& T_imu
     // With a refined gate the first iteration's rows only bring the estimate near: the posterior
     // is built from gated rows.
     const bool gated = options.refined_gate <= 0.0 || iter > 0;
-    if (gated && dx.segment<3>(kRot).norm() < options.convergence_rot_rad &&
+    if (dx.segment<3>(kRot).norm() < options.convergence_rot_rad &&
         dx.segment<3>(kPos).norm() < options.convergence_trans_m) {
-      report.converged = true;
-      break;
+      if (gated) {
+        report.converged = true;
+        break;
+      }
+      // The matches are right already; only the posterior must leave out the far residuals.
+      reuse_rows = true;
+    } else {
+      reuse_rows = false;
     }
   }
 

@@ -70,6 +70,9 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(c->init.duration_s >= 0.0), "init.duration", &c->init.duration_s, 1.0);
   fix(c->init.min_samples < 2, "init.min_samples", &c->init.min_samples, 2);
   fix(!(c->max_imu_gap_s > 0.0), "max_imu_gap", &c->max_imu_gap_s, 0.5);
+  fix(!(c->max_imu_gap_bridge_s >= 0.0), "max_imu_gap_bridge", &c->max_imu_gap_bridge_s, 0.0);
+  fix(!(c->gap_acc_std >= 0.0), "gap_acc_std", &c->gap_acc_std, 1.0);
+  fix(!(c->gap_gyro_std >= 0.0), "gap_gyro_std", &c->gap_gyro_std, 0.05);
   fix(!(c->noise.gyro >= 0.0), "noise.gyro", &c->noise.gyro, 0.01);
   fix(!(c->noise.acc >= 0.0), "noise.acc", &c->noise.acc, 0.02);
   fix(!(c->noise.gyro_bias >= 0.0), "noise.gyro_bias", &c->noise.gyro_bias, 1e-4);
@@ -148,6 +151,7 @@ struct LioPpf::Impl {
     imu.clear();
     state = NavState();
     last_scan_end = -std::numeric_limits<double>::infinity();
+    bridged_gaps.clear();
     if (splitter) splitter->Reset();
     for (auto& p : extra) p->Reset();
     knn->Reset();
@@ -174,10 +178,18 @@ struct LioPpf::Impl {
       last_imu_stamp = -std::numeric_limits<double>::infinity();
       ResetFilter(os.str());
     } else if (initialized && s.stamp_s - last_imu_stamp > config.max_imu_gap_s) {
+      const double gap = s.stamp_s - last_imu_stamp;
       std::ostringstream os;
-      os << "IMU gap of " << s.stamp_s - last_imu_stamp << " s > max_imu_gap "
-         << config.max_imu_gap_s << " s";
-      ResetFilter(os.str());
+      os << "IMU gap of " << gap << " s > max_imu_gap " << config.max_imu_gap_s << " s";
+      if (gap <= config.max_imu_gap_bridge_s) {
+        // Widened when the next scan has been propagated across it (ProcessOne): a scan still
+        // queued from before the gap must not see the extra uncertainty.
+        bridged_gaps.push_back({last_imu_stamp, gap});
+        Log(LogLevel::kWarn, os.str() + ": bridged (state and map kept, uncertainty widened)");
+      } else {
+        os << " and > max_imu_gap_bridge " << config.max_imu_gap_bridge_s << " s";
+        ResetFilter(os.str());
+      }
     }
     last_imu_stamp = s.stamp_s;
     imu.push_back(s);
@@ -357,6 +369,16 @@ struct LioPpf::Impl {
       os << "IMU extrapolated by " << t_end - last_imu_stamp << " s (last sample held)";
       Append(&r.reason, os.str());
     }
+    while (!bridged_gaps.empty() && bridged_gaps.front().begin_s < t_end) {
+      WidenForGap(bridged_gaps.front().length_s);
+      r.imu_gap_s = std::max(r.imu_gap_s, bridged_gaps.front().length_s);
+      bridged_gaps.pop_front();
+    }
+    if (r.imu_gap_s > 0.0) {
+      std::ostringstream os;
+      os << "IMU gap of " << r.imu_gap_s << " s bridged";
+      Append(&r.reason, os.str());
+    }
     frame = ScanFrame();
     if (scan.has_time_field || scan.times_estimated) {
       DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &frame.points_lidar, config.num_threads);
@@ -473,6 +495,18 @@ struct LioPpf::Impl {
     return r;
   }
 
+  // The IMU did not measure the motion during a gap: integration across it assumed the samples on
+  // either side held throughout. Allow a constant unmeasured acceleration and turn rate for its
+  // length, so the registration of the next scan can move the pose as far as that explains.
+  void WidenForGap(double gap_s) {
+    const double rot = config.gap_gyro_std * gap_s;
+    const double vel = config.gap_acc_std * gap_s;
+    const double pos = 0.5 * config.gap_acc_std * gap_s * gap_s;
+    state.P.block<3, 3>(kRot, kRot).diagonal().array() += rot * rot;
+    state.P.block<3, 3>(kVel, kVel).diagonal().array() += vel * vel;
+    state.P.block<3, 3>(kPos, kPos).diagonal().array() += pos * pos;
+  }
+
   void InsertScattered(const ScanFrame& f, const Eigen::Isometry3d& T_world_lidar, ScanResult* r) {
     const Eigen::Isometry3f T = T_world_lidar.cast<float>();
     for (size_t i = 0; i < f.points_lidar.size(); ++i) {
@@ -493,6 +527,11 @@ struct LioPpf::Impl {
   std::deque<ImuSample> imu;
   std::deque<QueuedScan> scans;
   std::vector<ScanResult> pending;
+  struct BridgedGap {
+    double begin_s;   // last IMU stamp before the gap
+    double length_s;
+  };
+  std::deque<BridgedGap> bridged_gaps;  // not yet propagated across
   NavState state;
   ScanFrame frame;
   VoxelGridDownsampler downsampler;  // keeps its hash table between scans

@@ -19,6 +19,9 @@ struct RunOptions {
   double duration = 12.0;
   Eigen::Vector3d acc_bias = Eigen::Vector3d::Zero();  // m/s^2, added to every sample
   Eigen::Isometry3d T_imu_lidar = test::MakePose(Eigen::Vector3d(0.1, -0.05, 0.2), 0, 0, 0.2);
+  // Neither IMU samples nor scans in [gap_begin, gap_begin + gap_length): a link that was down.
+  double gap_begin = 0.0;
+  double gap_length = 0.0;
 };
 
 struct RunOutput {
@@ -43,7 +46,11 @@ RunOutput Simulate(const RunOptions& o, Config config) {
   RunOutput out;
   double t_imu = 0.0;
   const double imu_dt = 1.0 / 200.0;
+  const auto in_gap = [&o](double t) {
+    return o.gap_length > 0.0 && t >= o.gap_begin && t < o.gap_begin + o.gap_length;
+  };
   for (double t_scan = 0.0; t_scan + lidar.period <= o.duration; t_scan += lidar.period) {
+    if (in_gap(t_scan)) continue;
     const auto pts = test::SimulateScan(scene, pose, o.T_imu_lidar, t_scan, lidar, &rng);
     const double t_end = pts.back().t;
     // IMU up to (and a little past) the scan end arrives before the scan is processed.
@@ -52,7 +59,7 @@ RunOutput Simulate(const RunOptions& o, Config config) {
       s.angular_velocity += gyro_bias + 0.002 * Eigen::Vector3d(n(rng), n(rng), n(rng));
       s.linear_acceleration += o.acc_bias + 0.02 * Eigen::Vector3d(n(rng), n(rng), n(rng));
       s.linear_acceleration /= o.acc_unit;
-      lio.AddImu(s);
+      if (!in_gap(t_imu)) lio.AddImu(s);
       t_imu += imu_dt;
     }
     const test::CloudBuffer cloud = test::MakeCloud(pts, t_scan, t_end, o.enc);
@@ -176,6 +183,53 @@ TEST(EndToEnd, OusterStyleTimeImuInGStampAtEnd) {
   config.time.stamp_position = StampPosition::kEnd;  // not detectable from >= 0 offsets
   const RunOutput run = Simulate(o, config);
   CheckAccuracy(run, "ouster t u32 ns, stamp at end, IMU in g", "ouster");
+}
+
+// Both streams silent for 2 s while the robot moves (a network link down between driver and
+// node): the gap is bridged and the trajectory keeps the accuracy bound on both sides of it.
+// Before, any IMU gap over max_imu_gap (0.5 s) reset the filter, whose static initialization a
+// moving robot never gives again: no pose after the gap at all (GapLongerThanTheBridgeResets).
+TEST(EndToEnd, TwoSecondGapWhileMovingIsBridged) {
+  RunOptions o;
+  o.duration = 14.0;  // as many poses as the runs without a gap
+  o.gap_begin = 6.0;
+  o.gap_length = 2.0;
+  const RunOutput run = Simulate(o, Config());
+  size_t bridged = 0, after_gap = 0;
+  for (const ScanResult& r : run.results) {
+    EXPECT_NE(r.status, Status::kReset) << r.reason;
+    if (r.imu_gap_s > 0.0) {
+      ++bridged;
+      EXPECT_NEAR(r.imu_gap_s, 2.0, 0.02);
+      EXPECT_NE(r.reason.find("bridged"), std::string::npos) << r.reason;
+    }
+    if (r.pose_valid && r.stamp_s > o.gap_begin + o.gap_length) ++after_gap;
+  }
+  EXPECT_EQ(bridged, 1u);
+  EXPECT_GE(after_gap, 58u);  // 6 s of scans at 10 Hz after the gap
+  CheckAccuracy(run, "2 s gap while moving, bridged", "gap2s");
+}
+
+// Beyond max_imu_gap_bridge the filter resets as it always did; a moving robot then gets no pose
+// until it stands still for the static initialization. Kept for gaps extrapolation cannot span.
+TEST(EndToEnd, GapLongerThanTheBridgeResets) {
+  RunOptions o;
+  o.gap_begin = 6.0;
+  o.gap_length = 2.0;
+  Config config;
+  config.max_imu_gap_bridge_s = 1.5;
+  const RunOutput run = Simulate(o, config);
+  size_t resets = 0, after_gap = 0;
+  for (const ScanResult& r : run.results) {
+    if (r.status == Status::kReset) {
+      ++resets;
+      EXPECT_NE(r.reason.find("max_imu_gap_bridge"), std::string::npos) << r.reason;
+    }
+    EXPECT_EQ(r.imu_gap_s, 0.0);
+    if (r.pose_valid && r.stamp_s > o.gap_begin + o.gap_length) ++after_gap;
+  }
+  EXPECT_EQ(resets, 1u);
+  EXPECT_EQ(after_gap, 0u);
 }
 
 }  // namespace

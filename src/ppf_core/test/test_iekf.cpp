@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 
 #include "ppf_core/iekf.hpp"
@@ -27,12 +28,14 @@ void Build(const test::Scene& scene, Fixture* f, double max_range = 100.0) {
   std::mt19937 rng(5);
   const test::PoseFn still = [](double) { return Eigen::Isometry3d::Identity(); };
   for (double t : {0.0, 0.0123}) {  // two map scans, slightly different noise
-    for (const auto& p : test::SimulateScan(scene, still, Eigen::Isometry3d::Identity(), t, lidar, &rng)) {
+    for (const auto& p :
+         test::SimulateScan(scene, still, Eigen::Isometry3d::Identity(), t, lidar, &rng)) {
       f->map.Insert(p.p);
     }
   }
   std::vector<Eigen::Vector3f> scan;
-  for (const auto& p : test::SimulateScan(scene, still, Eigen::Isometry3d::Identity(), 1.0, lidar, &rng)) {
+  for (const auto& p :
+       test::SimulateScan(scene, still, Eigen::Isometry3d::Identity(), 1.0, lidar, &rng)) {
     scan.push_back(p.p);
   }
   f->frame.points_lidar = VoxelDownsample(scan, 0.5);
@@ -110,7 +113,7 @@ TEST(Iekf, CorridorIsDegenerateAlongItsAxisAndKeepsThePrediction) {
   EXPECT_NE(rep.degenerate_reason.find("translation"), std::string::npos) << rep.degenerate_reason;
   EXPECT_LT(rep.eig_translation(0), options.degeneracy_min_eig_translation);
   EXPECT_GT(rep.eig_translation(0), IekfOptions().degeneracy_min_eig_translation);  // why 30
-  EXPECT_NEAR(s.p_world_imu.x(), 0.3, 1e-3);  // prediction kept along the corridor
+  EXPECT_NEAR(s.p_world_imu.x(), 0.3, 1e-3);     // prediction kept along the corridor
   EXPECT_LT(std::abs(s.p_world_imu.y()), 0.01);  // constrained directions corrected
   // The covariance along x stays at the prior's (no information there).
   EXPECT_NEAR(s.P(kPos, kPos), 0.25, 0.01);
@@ -130,6 +133,92 @@ TEST(Iekf, TooFewRowsKeepsThePrediction) {
   EXPECT_TRUE(rep.skipped);
   EXPECT_TRUE(s.p_world_imu.isApprox(before.p_world_imu));
   EXPECT_TRUE(s.P.isApprox(before.P));
+}
+
+// Rows of a fixed set, as a provider would give them: r = n . (T_world_lidar p) + offset.
+class FixedRows : public ResidualProvider {
+ public:
+  explicit FixedRows(std::vector<PointPlaneRow> rows) : rows_(std::move(rows)) {}
+  std::string Name() const override { return "fixed"; }
+  void BeginScan(const ScanFrame&) override {}
+  void ComputeRows(const Eigen::Isometry3d&, std::vector<PointPlaneRow>* rows) override {
+    rows->insert(rows->end(), rows_.begin(), rows_.end());
+  }
+
+ private:
+  std::vector<PointPlaneRow> rows_;
+};
+
+// Wrong associations that agree with one another (the front half of the scan matched to a plane
+// 0.3 m below its own, as a road point to a kerb's foot would be) pull the pose about a
+// horizontal axis. The refined gate keeps them out of every iteration after the first.
+TEST(Iekf, RefinedGateKeepsConsistentWrongMatchesOutOfThePosterior) {
+  Fixture f;
+  Build(test::MakeRoomScene(), &f);
+  std::vector<PointPlaneRow> wrong;
+  for (const Eigen::Vector3f& p : f.frame.points_lidar) {
+    if (p.x() < 1.0 || wrong.size() >= 400) continue;
+    PointPlaneRow row;
+    row.point_lidar = p.cast<double>();
+    row.normal_world = Eigen::Vector3d::UnitZ();
+    row.offset = -p.z() + 0.3;  // residual 0.3 m at the true (identity) pose
+    wrong.push_back(row);
+  }
+  ASSERT_EQ(wrong.size(), 400u);
+  auto run = [&](double refined_gate, IekfReport* rep) {
+    KnnResidualProvider knn;
+    knn.BeginScan(f.frame);
+    FixedRows bad(wrong);
+    NavState s = OffsetPrior(Eigen::Vector3d(0.05, -0.03, 0.02), 0.5 * test::kPi / 180.0);
+    IekfOptions options;
+    options.refined_gate = refined_gate;
+    *rep = IekfUpdate(options, Eigen::Isometry3d::Identity(), {&knn, &bad}, &s);
+    return s;
+  };
+  IekfReport open, gated;
+  const NavState s_open = run(0.0, &open);
+  const NavState s_gated = run(0.1, &gated);
+  const double tilt_open = SO3Log(s_open.R_world_imu).head<2>().norm() * 180.0 / test::kPi;
+  const double tilt_gated = SO3Log(s_gated.R_world_imu).head<2>().norm() * 180.0 / test::kPi;
+  EXPECT_GT(tilt_open, 0.1) << "the wrong rows do pull without the gate";
+  EXPECT_LT(tilt_gated, 0.05);
+  EXPECT_LT(s_gated.p_world_imu.norm(), 0.01) << s_gated.p_world_imu.transpose();
+  ASSERT_EQ(gated.rows_per_provider.size(), 2u);
+  EXPECT_EQ(gated.rows_per_provider[1], 0) << "the last iteration kept wrong rows";
+  EXPECT_EQ(open.rows_per_provider[1], 400);
+}
+
+// A far row's error grows with its range (its plane is fitted from neighbours as far apart as the
+// beams are there) and acts through a long lever arm: with laser_angular_std the same small bias
+// on rows 40 m out turns the estimate far less.
+TEST(Iekf, FarRowsWeighLessWithAngularNoise) {
+  Fixture f;
+  Build(test::MakeRoomScene(), &f);
+  std::vector<PointPlaneRow> far;
+  for (int i = 0; i < 300; ++i) {
+    PointPlaneRow row;
+    const double a = 2.0 * test::kPi * i / 300.0;
+    row.point_lidar = Eigen::Vector3d(40.0 * std::cos(a), 40.0 * std::sin(a), -1.5);
+    row.normal_world = Eigen::Vector3d::UnitZ();
+    // 5 cm off at the true pose, more the farther forward: a map tilted 0.07 deg out there.
+    row.offset = 1.5 + 0.05 * std::max(0.0, std::cos(a));
+    far.push_back(row);
+  }
+  auto tilt_with = [&](double angular_std) {
+    KnnResidualProvider knn;
+    knn.BeginScan(f.frame);
+    FixedRows bias(far);
+    NavState s = OffsetPrior(Eigen::Vector3d::Zero(), 0.0);
+    IekfOptions options;
+    options.laser_angular_std = angular_std;
+    options.refined_gate = 0.0;
+    IekfUpdate(options, Eigen::Isometry3d::Identity(), {&knn, &bias}, &s);
+    return SO3Log(s.R_world_imu).head<2>().norm() * 180.0 / test::kPi;
+  };
+  const double flat = tilt_with(0.0);
+  const double ranged = tilt_with(0.005);
+  EXPECT_GT(flat, 0.01);
+  EXPECT_LT(ranged, 0.5 * flat) << "flat " << flat << " ranged " << ranged;
 }
 
 // Gravity on S2: the filter's only state of fixed magnitude. Box-plus keeps |g|, box-minus inverts
@@ -162,7 +251,8 @@ TEST(GravityS2, BoxOperationsKeepMagnitudeAndInvert) {
 TEST(KnnResidual, PlaneValidityRejectsNonPlanarNeighbours) {
   Eigen::Vector3d n;
   double d;
-  std::vector<Eigen::Vector3f> flat = {{0, 0, 0}, {1, 0, 0.02f}, {0, 1, -0.02f}, {1, 1, 0}, {0.5f, 0.5f, 0.01f}};
+  std::vector<Eigen::Vector3f> flat = {
+      {0, 0, 0}, {1, 0, 0.02f}, {0, 1, -0.02f}, {1, 1, 0}, {0.5f, 0.5f, 0.01f}};
   ASSERT_TRUE(FitPlane(flat, 0.1, &n, &d));
   EXPECT_NEAR(std::abs(n.z()), 1.0, 1e-3);
   std::vector<Eigen::Vector3f> corner = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}};
@@ -174,7 +264,8 @@ TEST(KnnResidual, PlaneValidityRejectsNonPlanarNeighbours) {
   std::vector<Eigen::Vector3f> arc;
   for (int i = -2; i <= 2; ++i) {
     const double a = 0.033 * i;
-    arc.emplace_back(static_cast<float>(7.5 * std::cos(a)), static_cast<float>(7.5 * std::sin(a)), -2.f);
+    arc.emplace_back(static_cast<float>(7.5 * std::cos(a)), static_cast<float>(7.5 * std::sin(a)),
+                     -2.f);
   }
   EXPECT_TRUE(FitPlane(arc, 0.1, &n, &d));
   EXPECT_FALSE(FitPlane(arc, 0.1, &n, &d, 0.04));

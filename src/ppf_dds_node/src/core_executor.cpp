@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <optional>
+#include <sstream>
 #include <utility>
 
 #include "ppf_bridge/convert.hpp"
@@ -273,6 +275,15 @@ void CoreExecutor::Publish(const ScanResult& r, const PendingScan& p, double cor
                                          std::to_string(r.dropped_nan) + " of " +
                                          std::to_string(r.input_points) +
                                          " points non-finite (NaN/Inf), dropped");
+  }
+  if (r.imu_gap_s > 0.0) {
+    // Not rate limited: a gap is rare and the operator wants its size and what it cost.
+    const auto [scans_lost, imu_lost] = stats_.Lost();
+    std::ostringstream os;
+    os << std::fixed << std::setprecision(3) << "input gap: no IMU for " << r.imu_gap_s
+       << " s before the scan at " << r.stamp_s << "; bridged, odometry continues (lost so far: "
+       << scans_lost << " scans, " << imu_lost << " IMU samples)";
+    Log(Level::kWarn, os.str());
   }
   if (r.status == Status::kRejected || r.status == Status::kReset) {
     status_log_.Log(Level::kWarn, std::string("core: ") + StatusName(r.status) + ": " + r.reason);

@@ -1,5 +1,6 @@
 #include "node_stats.hpp"
 
+#include <algorithm>
 #include <iomanip>
 #include <sstream>
 
@@ -28,6 +29,15 @@ void NodeStats::CountResult(const ScanResult& r) {
   if (r.status == Status::kReset) ++summary_.resets;
   if (r.status == Status::kDegenerate) ++summary_.degenerate;
   summary_.points_nonfinite += r.dropped_nan;
+  if (r.imu_gap_s > 0.0) {
+    ++summary_.imu_gaps_bridged;
+    summary_.imu_gap_max_s = std::max(summary_.imu_gap_max_s, r.imu_gap_s);
+  }
+}
+
+std::pair<uint64_t, uint64_t> NodeStats::Lost() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return {summary_.scans_lost, summary_.imu_lost};
 }
 
 void NodeStats::AddPublished(const ScanTiming& t) {
@@ -110,6 +120,7 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " scans_empty=" << s.scans_empty << " scans_too_large=" << s.scans_too_large
     << " scans_bad_stamp=" << s.scans_bad_stamp << " points_nonfinite=" << s.points_nonfinite
     << " imu_duplicate=" << s.imu_duplicate << " imu_outliers=" << s.imu_outliers
+    << " imu_gaps_bridged=" << s.imu_gaps_bridged << " imu_gap_max_s=" << s.imu_gap_max_s
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

@@ -116,6 +116,7 @@ int main(int argc, char** argv) {
       "  scans      received %llu  processed %llu  odometry %llu  dropped %llu  "
       "malformed %llu  rejected %llu  initializing %llu  resets %llu\n"
       "  imu        received %llu  malformed %llu  overflow %llu\n"
+      "  input      lost scans %llu  lost imu %llu  imu gaps bridged %llu (longest %.3f s)\n"
       "  latency    p50 %.2f ms  p99 %.2f ms  (DDS receive -> odometry published)\n"
       "  core       p50 %.2f ms  p99 %.2f ms\n"
       "  overhead   p50 %.2f ms  p99 %.2f ms  (latency - core - waits for IMU / busy core)\n",
@@ -124,7 +125,9 @@ int main(int argc, char** argv) {
       (unsigned long long)s.scans_malformed, (unsigned long long)s.scans_rejected,
       (unsigned long long)s.scans_initializing, (unsigned long long)s.resets,
       (unsigned long long)s.imu_received, (unsigned long long)s.imu_malformed,
-      (unsigned long long)s.imu_overflow, s.latency_p50_ms, s.latency_p99_ms, s.core_p50_ms,
+      (unsigned long long)s.imu_overflow, (unsigned long long)s.scans_lost,
+      (unsigned long long)s.imu_lost, (unsigned long long)s.imu_gaps_bridged, s.imu_gap_max_s,
+      s.latency_p50_ms, s.latency_p99_ms, s.core_p50_ms,
       s.core_p99_ms, s.overhead_p50_ms, s.overhead_p99_ms);
   std::printf("PPF_NODE_SUMMARY %s\n", line.c_str());
   std::fflush(stdout);

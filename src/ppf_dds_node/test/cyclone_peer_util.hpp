@@ -149,12 +149,16 @@ inline void RunNodeAndPeer(const std::string& peer_exe, const std::string& dir, 
   ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", dir + "/node.yaml"}, {}, dir + "/node.log"));
   std::string line;
   ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
-  std::vector<std::string> argv = {peer_exe, dir + "/seq.dump", std::to_string(domain), "20"};
+  std::vector<std::string> argv = {peer_exe, dir + "/seq.dump", std::to_string(domain), "20",
+                                   "--go-file", dir + "/go"};
   argv.insert(argv.end(), peer_args.begin(), peer_args.end());
   ASSERT_TRUE(
       peer.Start(argv, {"CYCLONEDDS_URI=file://" + dir + "/cyclone.xml"}, dir + "/peer.log"));
   ASSERT_TRUE(peer.WaitForLine("READY", &line, 25s, &run->peer))
       << "Cyclone and Fast DDS did not discover each other (domain " << domain << ")";
+  ASSERT_TRUE(WaitForNodeInputsMatched(dir + "/node.log", 1, 1, 20s))
+      << "the node did not discover the peer's writers, see " << dir << "/node.log";
+  std::ofstream(dir + "/go").put('\n');
   ASSERT_TRUE(peer.WaitForLine("RESULT", &run->result, 90s, &run->peer));
   EXPECT_TRUE(ExitedWith(peer.Wait(10s), 0));
   run->node_hwm_kb = ProcStatusKb(node.pid(), "VmHWM");

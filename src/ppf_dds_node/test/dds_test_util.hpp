@@ -194,6 +194,23 @@ inline int CountLinesWith(const std::string& text, const std::string& needle) {
   return n;
 }
 
+// Until ppf_node's log (stderr, `node_log`) says its /points and /imu readers matched `points`
+// and `imu` writers. Our writer's on_publication_matched only says our side saw the node's
+// reader; the node sees our writer independently, and what we send before that is dropped by its
+// volatile reader without a trace (no sequence gap: it never saw the writer). Under ThreadSanitizer
+// the node's side lagged by more than a 1.5 s IMU burst.
+inline bool WaitForNodeInputsMatched(const std::string& node_log, int points, int imu,
+                                     std::chrono::milliseconds timeout) {
+  const std::string m = " publisher(s) matched";
+  return WaitUntil(
+      [&] {
+        const std::string log = ReadTextFile(node_log);
+        return CountLinesWith(log, "] points: " + std::to_string(points) + m) > 0 &&
+               CountLinesWith(log, "] imu: " + std::to_string(imu) + m) > 0;
+      },
+      timeout);
+}
+
 // A "Vm...:" field of /proc/<pid>/status in kB (VmRSS, VmHWM), -1 if unreadable.
 inline long ProcStatusKb(pid_t pid, const std::string& field) {
   std::ifstream in("/proc/" + std::to_string(pid) + "/status");

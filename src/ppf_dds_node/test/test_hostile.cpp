@@ -6,6 +6,8 @@
 // the next valid scan; the peer checks that odometry arrived for the scan after each defect.
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
+
 #include <cmath>
 #include <regex>
 #include <sstream>
@@ -124,8 +126,11 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   // later line carried; it is not an event of its own.
   const int unknown_lines = CountLinesWith(log, "has unknown datatype 42") -
                             CountLinesWith(log, "similar since the last line) last: ");
+  // How many lines pass depends on how fast the burst arrives (0.05 s interval here): under
+  // ThreadSanitizer the node takes it in slower (15 lines seen), so the bound is wider there.
   EXPECT_GE(unknown_lines, 2);
-  EXPECT_LE(unknown_lines, 10);
+  EXPECT_LE(unknown_lines, kUnderTsan ? 24 : 10);
+  EXPECT_GE(SuppressedIn(log, bad), 8) << "the burst was not rate limited";
   EXPECT_EQ(unknown_lines + SuppressedIn(log, bad), 32);
   EXPECT_EQ(SummaryField(s, "scans_malformed"), 8 + 32);
 
@@ -211,10 +216,10 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
 }
 
 // The IMU falls silent for 2 s mid-run while the LiDAR goes on (a dropout, a 2 s gap). The core
-// resets on the gap (it cannot propagate across it) and says so; the node stays up, initializes
-// again and publishes odometry again. The platform stays at rest: re-initialization needs rest
-// (no moving-start initialization, README "Known gaps").
-TEST(Hostile, ImuDropoutOfTwoSecondsResetsOnceAndOdometryResumes) {
+// bridges the gap (state and map kept, uncertainty widened: imu.max_gap_bridge) and says so; the
+// node publishes odometry for every scan, with no reset and no jump. The platform stays at rest,
+// so the pose after the gap must equal the pose before it.
+TEST(Hostile, ImuDropoutOfTwoSecondsIsBridgedWithoutResetOrJump) {
   std::string sim;
   const std::string skip = SimOrSkipReason(&sim);
   if (!skip.empty()) GTEST_SKIP() << skip;
@@ -235,33 +240,40 @@ TEST(Hostile, ImuDropoutOfTwoSecondsResetsOnceAndOdometryResumes) {
   const std::string& log = run.log;
   EXPECT_NEAR(SummaryField(run.result, "skipped_imu"), 400, 2);  // 2 s of 200 Hz
   EXPECT_EQ(SummaryField(s, "imu_received"), imus - SummaryField(run.result, "skipped_imu"));
-  // Said what happened: the stream came back after 2 s, the core reset on the gap and
-  // initialized again.
+  // Said what happened: the stream came back after 2 s and the core bridged the gap.
   EXPECT_EQ(CountLinesWith(log, "IMU stream resumed after 2.0"), 1) << log;
-  EXPECT_GE(CountLinesWith(log, "reset: IMU gap of 2.0"), 1) << log;
-  EXPECT_EQ(CountLinesWith(log, "IMU initialized at"), 2) << log;
-  EXPECT_EQ(SummaryField(s, "resets"), 1);
+  EXPECT_GE(CountLinesWith(log, "core: IMU gap of 2.0"), 1) << log;
+  EXPECT_GE(CountLinesWith(log, "input gap: no IMU for 2.0"), 1) << log;
+  EXPECT_EQ(CountLinesWith(log, "IMU initialized at"), 1) << log;
+  EXPECT_EQ(SummaryField(s, "resets"), 0);
+  EXPECT_EQ(SummaryField(s, "imu_gaps_bridged"), 1);
+  EXPECT_NEAR(SummaryField(s, "imu_gap_max_s"), 2.0, 0.05);
   EXPECT_EQ(SummaryField(s, "scans_lost"), 0);
   EXPECT_EQ(SummaryField(s, "imu_outliers"), 0);
-  // Odometry before the gap and again from 1 s of rest after it, to the end.
+  EXPECT_EQ(SummaryField(s, "odometry_published"),
+            clouds - SummaryField(s, "scans_initializing"))
+      << "a scan without odometry";
+  // Odometry before, across and after the gap, to the end, and no jump: at rest, the last pose
+  // before the gap and the last pose of the run coincide.
   const std::string tum = ppf::test::ReadTextFile(dir + "/node.tum");
   std::stringstream ss(tum);
-  double t, first = -1, last = -1, before = 0, after = 0;
-  std::string rest;
-  while (ss >> t && std::getline(ss, rest)) {
-    if (first < 0) first = t;
-    last = t;
-  }
-  ss.clear();
-  ss.str(tum);
   const double t0 = 1700000000.0;  // ppf_sim's default start time
-  while (ss >> t && std::getline(ss, rest)) {
-    if (t < t0 + 3.0) ++before;
+  double t, x, y, z, last = -1, before = 0, after = 0;
+  Eigen::Vector3d p_before(0, 0, 0), p_last(0, 0, 0);
+  std::string rest;
+  while (ss >> t >> x >> y >> z && std::getline(ss, rest)) {
+    if (t < t0 + 3.0) {
+      ++before;
+      p_before = Eigen::Vector3d(x, y, z);
+    }
     if (t > t0 + 6.0) ++after;
+    last = t;
+    p_last = Eigen::Vector3d(x, y, z);
   }
   EXPECT_GE(before, 15) << "odometry before the gap";
   EXPECT_GE(after, 15) << "odometry after the gap (6..8 s)";
   EXPECT_GT(last, t0 + 7.8);
+  EXPECT_LT((p_last - p_before).norm(), 0.05) << "the pose jumped across the gap";
   EXPECT_EQ(SummaryField(run.result, "odom"), SummaryField(s, "odometry_published"));
   EXPECT_EQ(SummaryField(run.result, "odom_bad"), 0);
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());

@@ -31,6 +31,7 @@ using ppf::test::kProfiles;
 using ppf::test::SummaryField;
 using ppf::test::TempDir;
 using ppf::test::TestParticipant;
+using ppf::test::WaitForNodeInputsMatched;
 using ppf::test::WaitUntil;
 using ppf::test::WriterMatches;
 namespace fdds = eprosima::fastdds::dds;
@@ -192,6 +193,8 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
         return cloud_m.matched > 0 && imu_m.matched > 0 && bad_m.matched > 0 && odom.matched > 0;
       },
       20s));
+  // Two participants write /points (driver and rogue): both must be known to the node.
+  ASSERT_TRUE(WaitForNodeInputsMatched(dir + "/node.log", 2, 1, 20s)) << "see " << dir << "/node.log";
 
   // VLP-16-sized static room: 1.5 s of resting IMU for initialization, then 20 scans at 10 Hz.
   sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
@@ -225,6 +228,7 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   EXPECT_EQ(SummaryField(line, "scans_malformed"), 3.0);
   EXPECT_EQ(SummaryField(line, "imu_malformed"), 1.0);
   EXPECT_EQ(SummaryField(line, "scans_received"), kScans + 3.0);
+  EXPECT_EQ(SummaryField(line, "imu_received"), static_cast<double>(seq));  // incl. the NaN one
   EXPECT_EQ(SummaryField(line, "scans_processed"), kScans);
   EXPECT_EQ(SummaryField(line, "scans_dropped"), 0.0);
   EXPECT_EQ(SummaryField(line, "resets"), 0.0);
@@ -296,6 +300,7 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
   ASSERT_TRUE(cloud_w && imu_w);
   ASSERT_TRUE(
       WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 && odom.matched > 0; }, 20s));
+  ASSERT_TRUE(WaitForNodeInputsMatched(dir + "/node.log", 1, 1, 20s)) << "see " << dir << "/node.log";
   sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
   const int kScans = 10;
   size_t first_pass = 0;
@@ -329,6 +334,7 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
   EXPECT_EQ(SummaryField(line, "imu_late"), 0.0);
   EXPECT_EQ(SummaryField(line, "scans_late"), 0.0);
   EXPECT_EQ(SummaryField(line, "scans_processed"), 2.0 * kScans);
+  EXPECT_EQ(SummaryField(line, "imu_received"), static_cast<double>(seq));
   EXPECT_EQ(SummaryField(line, "imu_out_of_order"), 0.0);
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }

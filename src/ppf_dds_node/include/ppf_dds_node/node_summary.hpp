@@ -36,6 +36,10 @@ struct NodeSummary {
   // Stamps off the stream's timeline (> 0.5 s back or ahead) that the following samples did
   // not confirm: single outliers, dropped instead of restarting the filter.
   uint64_t imu_outliers = 0;
+  // IMU gaps (a link down, a stalled driver) the core bridged with state and map kept; longer
+  // ones reset it (resets). The longest bridged gap in seconds of sensor time.
+  uint64_t imu_gaps_bridged = 0;
+  double imu_gap_max_s = 0;
   double latency_p50_ms = 0, latency_p99_ms = 0, latency_max_ms = 0;
   double core_p50_ms = 0, core_p99_ms = 0;
   // overhead = latency - core - imu_wait - behind_core: the node's own cost (decode, hand-over,

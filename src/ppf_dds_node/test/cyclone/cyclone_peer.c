@@ -16,6 +16,8 @@
  *                    odom=0|1": whether odometry arrived for the scan stamped S.
  *   --imu-gap S L    send no IMU from S s to S+L s after the first message (clouds go on).
  *   --max-points N   the replicated "several million points" cloud has about N points [2100000].
+ *   --go-file PATH   after READY, send nothing until PATH exists (30 s at most): the test creates
+ *                    it once the node has matched our writers too. Without it: 0.5 s grace.
  *
  * Dump format (little endian, written by test_cyclone from a ppf_sim bag): "PPFDUMP1", then records
  *   u8 kind (1 imu, 2 cloud), i64 bag time ns, i32 sec, u32 nanosec, str frame_id, then
@@ -28,6 +30,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <unistd.h>
 #include <string.h>
 #include <time.h>
 
@@ -343,6 +346,7 @@ int main(int argc, char** argv) {
   int hostile_from = -1;
   double gap_start = -1, gap_len = 0;
   size_t max_points = 2100000;
+  const char* go_file = NULL;
   for (int i = 4; i < argc; ++i) {
     if (strcmp(argv[i], "--hostile") == 0 && i + 1 < argc) {
       hostile_from = atoi(argv[++i]);
@@ -351,6 +355,8 @@ int main(int argc, char** argv) {
       gap_len = atof(argv[++i]);
     } else if (strcmp(argv[i], "--max-points") == 0 && i + 1 < argc) {
       max_points = (size_t)atoll(argv[++i]);
+    } else if (strcmp(argv[i], "--go-file") == 0 && i + 1 < argc) {
+      go_file = argv[++i];
     } else {
       fprintf(stderr, "cyclone_peer: unknown option %s\n", argv[i]);
       return 2;
@@ -416,8 +422,21 @@ int main(int argc, char** argv) {
   }
   printf("READY\n");
   fflush(stdout);
-  /* Discovery is symmetric but not simultaneous: give the node's readers a moment as well. */
-  dds_sleepfor(DDS_MSECS(500));
+  /* Our writers matching says nothing of the node's readers matching them (what is sent before
+   * that is dropped by a volatile reader). With --go-file the test creates the file once the
+   * node's log says so; without it, a moment's grace. */
+  if (go_file) {
+    const int64_t go_deadline = now_ns() + DDS_SECS(30);
+    while (access(go_file, F_OK) != 0 && now_ns() < go_deadline) dds_sleepfor(DDS_MSECS(10));
+    if (access(go_file, F_OK) != 0) {
+      printf("RESULT error=no_go_file\n");
+      fflush(stdout);
+      dds_delete(pp);
+      return 1;
+    }
+  } else {
+    dds_sleepfor(DDS_MSECS(500));
+  }
 
   tally_t t;
   memset(&t, 0, sizeof(t));

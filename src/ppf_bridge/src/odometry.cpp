@@ -31,8 +31,8 @@ geometry_msgs::msg::Pose ToPoseMsg(const Eigen::Isometry3d& T) {
 }  // namespace
 
 nav_msgs::msg::Odometry ToOdometryMsg(const ScanResult& result, const OdometryFrames& frames,
-                                      const Eigen::Vector3d& angular_velocity_imu,
                                       double angular_velocity_variance) {
+  const Eigen::Vector3d& angular_velocity_imu = result.angular_velocity;
   nav_msgs::msg::Odometry odom;
   odom.header().stamp(TimeFromSeconds(result.stamp_s));
   odom.header().frame_id(frames.odom_frame);

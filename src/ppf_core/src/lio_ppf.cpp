@@ -112,6 +112,7 @@ std::vector<std::string> ValidateConfig(Config* c) {
 
 struct LioPpf::Impl {
   struct QueuedScan {
+    uint64_t id = 0;
     bool rejected = false;
     std::string error;
     double stamp_s = 0.0;
@@ -227,8 +228,9 @@ struct LioPpf::Impl {
     Log(LogLevel::kInfo, os.str());
   }
 
-  void AddScan(const CloudView& cloud) {
+  uint64_t AddScan(const CloudView& cloud) {
     QueuedScan q;
+    q.id = ++last_input_id;
     q.stamp_s = cloud.stamp_s;
     const auto t0 = Clock::now();
     std::string error;
@@ -242,10 +244,12 @@ struct LioPpf::Impl {
     if (q.rejected) Log(LogLevel::kWarn, "scan rejected: " + q.error);
     q.decode_ms = MsSince(t0);
     scans.push_back(std::move(q));
+    return last_input_id;
   }
 
   ScanResult Rejected(const QueuedScan& q) const {
     ScanResult r;
+    r.input_id = q.id;
     r.stamp_s = q.stamp_s;
     r.status = Status::kRejected;
     r.reason = "malformed cloud: " + q.error;
@@ -294,6 +298,8 @@ struct LioPpf::Impl {
     r->T_world_imu = r->T_world_map * state.T_world_imu();
     r->T_world_lidar = r->T_world_imu * config.T_imu_lidar;
     r->velocity_world = R * state.v_world;
+    r->angular_velocity = gyro_at_scan_end - state.gyro_bias;
+    if (config.output_deskewed_points) r->deskewed_points_lidar = frame.points_lidar;
     r->gyro_bias = state.gyro_bias;
     r->acc_bias = state.acc_bias;
     r->gravity_map = state.gravity_world;
@@ -313,6 +319,7 @@ struct LioPpf::Impl {
   ScanResult ProcessOne(QueuedScan& q) {
     const auto t_total = Clock::now();
     ScanResult r;
+    r.input_id = q.id;
     const DecodedScan& scan = q.scan;
     r.stamp_s = scan.t_end;
     r.scan_begin_s = scan.t_begin;
@@ -364,6 +371,10 @@ struct LioPpf::Impl {
     std::vector<ImuSample> samples(imu.begin(), imu.end());
     PoseTrace trace;
     PropagateImu(samples, t_end, init.acc_scale(), config.noise, &state, &trace);
+    for (const ImuSample& s : samples) {
+      if (s.stamp_s > t_end && s.stamp_s != samples.front().stamp_s) break;
+      gyro_at_scan_end = s.angular_velocity;
+    }
     if (t_end - last_imu_stamp > 0.02) {
       std::ostringstream os;
       os << "IMU extrapolated by " << t_end - last_imu_stamp << " s (last sample held)";
@@ -542,13 +553,15 @@ struct LioPpf::Impl {
   double last_scan_end = -std::numeric_limits<double>::infinity();
   size_t dropped_imu = 0;
   int scans_since_prune = 0;
+  uint64_t last_input_id = 0;
+  Eigen::Vector3d gyro_at_scan_end = Eigen::Vector3d::Zero();  // raw, of the scan in ProcessOne
 };
 
 LioPpf::LioPpf(const Config& config) : impl_(std::make_unique<Impl>(config)) {}
 LioPpf::~LioPpf() = default;
 
 void LioPpf::AddImu(const ImuSample& sample) { impl_->AddImu(sample); }
-void LioPpf::AddScan(const CloudView& cloud) { impl_->AddScan(cloud); }
+uint64_t LioPpf::AddScan(const CloudView& cloud) { return impl_->AddScan(cloud); }
 std::vector<ScanResult> LioPpf::Process(bool flush) { return impl_->Process(flush); }
 
 ScanResult LioPpf::ProcessScan(const CloudView& cloud) {

@@ -2,6 +2,7 @@
 // point (splitter labels decide residual sources and map insertion).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "ppf_core/lio_ppf.hpp"
@@ -121,6 +122,80 @@ TEST(LioPpf, TimeGoingBackwardsResets) {
   // Recovers: a new static second initializes again.
   FeedStill(&lio, 0.205, 1.5);
   EXPECT_TRUE(lio.initialized());
+}
+
+// Results name their scan by the id AddScan returned; a reset the IMU stream causes is a notice
+// with id 0, so a caller matching results to its own per-scan records never mismatches them.
+TEST(LioPpf, ResultsCarryTheirInputIdAndResetNoticesNone) {
+  LioPpf lio;
+  FeedStill(&lio, 0.0, 1.3);
+  const test::CloudBuffer s1 = StillScan(1.0), s2 = StillScan(1.1), bad_src = StillScan(1.2);
+  CloudView bad = bad_src.view;
+  bad.point_step = 6;
+  EXPECT_EQ(lio.AddScan(s1.view), 1u);
+  EXPECT_EQ(lio.AddScan(bad), 2u);
+  EXPECT_EQ(lio.AddScan(s2.view), 3u);
+  std::vector<ScanResult> rs = lio.Process();
+  ASSERT_EQ(rs.size(), 3u);
+  EXPECT_EQ(rs[0].input_id, 1u);
+  EXPECT_EQ(rs[1].input_id, 2u);
+  EXPECT_EQ(rs[1].status, Status::kRejected);
+  EXPECT_EQ(rs[2].input_id, 3u);
+  FeedStill(&lio, 0.0, 0.2);  // IMU jumps back: the core resets
+  const test::CloudBuffer s3 = StillScan(0.1);
+  EXPECT_EQ(lio.AddScan(s3.view), 4u);
+  rs = lio.Process(true);
+  ASSERT_EQ(rs.size(), 2u);
+  EXPECT_EQ(rs[0].status, Status::kReset);
+  EXPECT_EQ(rs[0].input_id, 0u);
+  EXPECT_EQ(rs[1].input_id, 4u);
+  lio.Reset();  // ids go on over a reset
+  EXPECT_EQ(lio.AddScan(s1.view), 5u);
+}
+
+// The odometry twist's rate comes from the core: the gyro sample at the scan end, bias removed;
+// the registered points on request are the downsampled, de-skewed scan.
+TEST(LioPpf, ResultCarriesAngularRateAndDeskewedPointsOnRequest) {
+  for (const bool keep : {false, true}) {
+    Config config;
+    config.output_deskewed_points = keep;
+    LioPpf lio(config);
+    FeedStill(&lio, 0.0, 1.3);
+    const test::CloudBuffer s1 = StillScan(1.0);
+    EXPECT_EQ(lio.ProcessScan(s1.view).status, Status::kOk);
+    // A slow yaw rate up to 1.45 s, a fast one after it (the scan below ends before that).
+    const auto rate_at = [](double t) { return t <= 1.45 + 1e-9 ? 0.01 : 0.5; };
+    for (int k = 1; k <= 60; ++k) {
+      ImuSample s = Still(1.3 + 0.005 * k);
+      s.angular_velocity = Eigen::Vector3d(0, 0, rate_at(s.stamp_s));
+      lio.AddImu(s);
+    }
+    const test::CloudBuffer s2 = StillScan(1.32);
+    const ScanResult r = lio.ProcessScan(s2.view);
+    ASSERT_TRUE(r.pose_valid) << r.reason;
+    // The last sample at or before the scan end, not the last one fed (1.6 s, 0.5 rad/s).
+    const double t_sample = 1.3 + 0.005 * std::floor((r.stamp_s - 1.3) / 0.005 + 1e-9);
+    ASSERT_GT(t_sample, 1.3);
+    const Eigen::Vector3d raw(0, 0, rate_at(t_sample));
+    EXPECT_LT((r.angular_velocity - (raw - r.gyro_bias)).norm(), 1e-12)
+        << r.angular_velocity.transpose() << " at " << r.stamp_s;
+    EXPECT_NEAR(r.angular_velocity.z(), 0.01, 0.005);
+    if (keep) {
+      EXPECT_EQ(r.deskewed_points_lidar.size(), r.downsampled_points);
+      EXPECT_GT(r.deskewed_points_lidar.size(), 100u);
+      // Registered into the room: every world point lies within its walls (x +-14, y +-10,
+      // z -2..4 m) to a few centimetres.
+      for (const Eigen::Vector3f& p : r.deskewed_points_lidar) {
+        const Eigen::Vector3d w = r.T_world_lidar * p.cast<double>();
+        ASSERT_LT(std::abs(w.x()), 14.05) << w.transpose();
+        ASSERT_LT(std::abs(w.y()), 10.05) << w.transpose();
+        ASSERT_GT(w.z(), -2.05) << w.transpose();
+        ASSERT_LT(w.z(), 4.05) << w.transpose();
+      }
+    } else {
+      EXPECT_TRUE(r.deskewed_points_lidar.empty());
+    }
+  }
 }
 
 TEST(LioPpf, StalledImuDoesNotHoldScansForever) {

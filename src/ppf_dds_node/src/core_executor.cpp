@@ -53,6 +53,7 @@ std::unique_ptr<LioPpf> CoreExecutor::CreateCore(const NodeConfig& c, std::strin
   }
   if (c.core_mode == "knn") core_config.mode = Mode::kKnn;
   if (c.core_mode == "ppf") core_config.mode = Mode::kPpf;
+  core_config.output_deskewed_points = c.publish_registered_points;
   for (const auto& note : ValidateConfig(&core_config)) Log(Level::kWarn, "core config: " + note);
   core_config.log = [](LogLevel level, const std::string& msg) {
     const Level l = level == LogLevel::kError  ? Level::kError
@@ -180,7 +181,6 @@ void CoreExecutor::FeedImu(const ImuSample& s) {
 void CoreExecutor::AddImuToCore(const ImuSample& s) {
   core_->AddImu(s);
   last_imu_fed_ = s.stamp_s;
-  last_gyro_ = s.angular_velocity;
 }
 
 void CoreExecutor::DropImuCandidates() {
@@ -226,8 +226,8 @@ bool CoreExecutor::AcceptScanStamp(double stamp) {
 void CoreExecutor::AddScan(ScanItem item) {
   const Clock::time_point t0 = Clock::now();
   std::optional<CloudView> view = bridge::ToCloudView(*item.msg);
-  core_->AddScan(*view);  // the listener checked the view; the core copies what it needs
   PendingScan p;
+  p.id = core_->AddScan(*view);  // the listener checked the view; the core copies what it needs
   p.received = item.received;
   p.decode_ms = MsBetween(item.received, item.queued);
   p.queue_ms = MsBetween(item.queued, t0);
@@ -238,7 +238,6 @@ void CoreExecutor::AddScan(ScanItem item) {
   p.added = Clock::now();
   p.add_scan_ms = MsBetween(t0, p.added);
   stats_.AddCoreBusy(p.added - t0);
-  if (config_.publish_registered_points) p.msg = std::move(item.msg);
   pending_.push_back(std::move(p));
 }
 
@@ -251,17 +250,45 @@ void CoreExecutor::RunCore(bool flush) {
   // Core time of a result: its AddScan plus its share of the Process call (by the core's own
   // per-scan timings when one call returns several scans).
   double total = 0.0;
-  for (const ScanResult& r : results) total += r.timings.total;
+  size_t scans = 0;
   for (const ScanResult& r : results) {
-    if (pending_.empty()) break;  // cannot happen: one result per AddScan
+    total += r.timings.total;
+    scans += r.input_id != 0;
+  }
+  for (const ScanResult& r : results) {
+    if (r.input_id == 0) {
+      ReportNotice(r);
+      continue;
+    }
+    // The core returns every scan's result once, in input order: entries older than this one
+    // were never answered, which would be a core bug worth a loud line rather than a mismatch.
+    while (!pending_.empty() && pending_.front().id < r.input_id) {
+      Log(Level::kError, "core returned no result for input " +
+                             std::to_string(pending_.front().id) + " (internal error)");
+      pending_.pop_front();
+    }
+    if (pending_.empty() || pending_.front().id != r.input_id) {
+      Log(Level::kError, "core result for unknown input " + std::to_string(r.input_id) +
+                             " (internal error): not published");
+      continue;
+    }
     PendingScan p = std::move(pending_.front());
     pending_.pop_front();
-    const double share = results.size() == 1 ? 1.0
-                         : total > 0.0       ? r.timings.total / total
-                                             : 1.0 / static_cast<double>(results.size());
+    const double share = scans == 1   ? 1.0
+                         : total > 0.0 ? r.timings.total / total
+                                       : 1.0 / static_cast<double>(scans);
     // A scan whose IMU coverage was incomplete waited in the core until this call.
     const double imu_wait_ms = std::max(0.0, MsBetween(p.added, t0));
     Publish(r, p, p.add_scan_ms + share * process_ms, imu_wait_ms);
+  }
+}
+
+// A result that belongs to no scan: the core reset itself (IMU time went back, or a gap too long
+// to bridge).
+void CoreExecutor::ReportNotice(const ScanResult& r) {
+  stats_.CountNotice(r);
+  if (r.status == Status::kReset) {
+    status_log_.Log(Level::kWarn, std::string("core: ") + StatusName(r.status) + ": " + r.reason);
   }
 }
 
@@ -289,7 +316,7 @@ void CoreExecutor::Publish(const ScanResult& r, const PendingScan& p, double cor
     status_log_.Log(Level::kWarn, std::string("core: ") + StatusName(r.status) + ": " + r.reason);
   }
   if (!r.pose_valid) return;
-  outputs_.Publish(r, last_gyro_ - r.gyro_bias, p.msg.get());
+  outputs_.Publish(r);
   t.published = Clock::now();
   t.received = p.received;
   t.core_ms = core_ms;

@@ -39,16 +39,15 @@ class CoreExecutor {
   void FlushLogs();
 
  private:
-  // Per scan handed to the core, in AddScan order: the core returns one result per scan, in input
-  // order, and carries no input id, so results are matched to these by order.
+  // Per scan handed to the core, in AddScan order, until its result (same input id) comes back.
   struct PendingScan {
+    uint64_t id = 0;  // LioPpf::AddScan's
     std::chrono::steady_clock::time_point received;
     std::chrono::steady_clock::time_point added;  // AddScan returned
     double decode_ms = 0.0;
     double queue_ms = 0.0;
     double behind_core_ms = 0.0;
     double add_scan_ms = 0.0;
-    std::shared_ptr<sensor_msgs::msg::PointCloud2> msg;  // kept only for registered_points
   };
 
   void FeedImu(const ImuSample& s);
@@ -59,6 +58,7 @@ class CoreExecutor {
   void AddScan(ScanItem item);
   void RunCore(bool flush);
   void Publish(const ScanResult& r, const PendingScan& p, double core_ms, double imu_wait_ms);
+  void ReportNotice(const ScanResult& r);
 
   const NodeConfig config_;
   std::unique_ptr<LioPpf> core_;
@@ -72,8 +72,6 @@ class CoreExecutor {
   double last_scan_fed_ = -std::numeric_limits<double>::infinity();
   std::vector<ImuSample> imu_candidates_;  // off the timeline, waiting for confirmation
   std::deque<PendingScan> pending_;
-  // The core reports no angular rate: the odometry twist uses the last gyro sample fed.
-  Eigen::Vector3d last_gyro_ = Eigen::Vector3d::Zero();
 
   // One limiter per kind of defect, so that one kind's burst does not hide another's line.
   RateLimitedLog ahead_log_, late_log_, imu_late_log_, imu_dup_log_, outlier_log_, nonfinite_log_;

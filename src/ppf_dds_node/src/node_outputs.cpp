@@ -70,10 +70,9 @@ bool NodeOutputs::Create(fdds::DomainParticipant* participant, fdds::Publisher* 
   return true;
 }
 
-void NodeOutputs::Publish(const ScanResult& r, const Eigen::Vector3d& angular_rate,
-                          const sensor_msgs::msg::PointCloud2* input) {
+void NodeOutputs::Publish(const ScanResult& r) {
   bridge::OdometryFrames frames{config_.odom_frame, config_.base_frame};
-  nav_msgs::msg::Odometry odom = bridge::ToOdometryMsg(r, frames, angular_rate);
+  nav_msgs::msg::Odometry odom = bridge::ToOdometryMsg(r, frames);
   odometry_writer_->write(&odom);
   if (tf_writer_) {
     tf2_msgs::msg::TFMessage tf = bridge::ToTfMessage(r, frames);
@@ -99,24 +98,13 @@ void NodeOutputs::Publish(const ScanResult& r, const Eigen::Vector3d& angular_ra
         bridge::ToSkeletonPlaneArray(fitted, r.stamp_s, config_.odom_frame);
     planes_writer_->write(&planes);
   }
-  if (registered_writer_ && input) PublishRegistered(r, *input);
+  if (registered_writer_) PublishRegistered(r);
   trajectory_.push_back({r.stamp_s, r.T_world_imu});
 }
 
-// Input points moved to the odom frame with the scan-end pose (not de-skewed: the core keeps
-// its de-skewed cloud internal). x, y, z float32 only.
-void NodeOutputs::PublishRegistered(const ScanResult& r, const sensor_msgs::msg::PointCloud2& in) {
-  int ox = -1, oy = -1, oz = -1;
-  for (const auto& f : in.fields()) {
-    if (f.datatype() != 7) continue;
-    if (f.name() == "x") ox = static_cast<int>(f.offset());
-    if (f.name() == "y") oy = static_cast<int>(f.offset());
-    if (f.name() == "z") oz = static_cast<int>(f.offset());
-  }
-  if (ox < 0 || oy < 0 || oz < 0 || in.is_bigendian()) return;
-  const size_t n = static_cast<size_t>(in.width()) * in.height();
-  const size_t step = in.point_step();
-  if (step == 0 || in.data().size() < n * step) return;
+// The points the scan was registered with (range-filtered, downsampled, de-skewed to the scan
+// end), moved to the odom frame with the scan-end pose: x, y, z float32.
+void NodeOutputs::PublishRegistered(const ScanResult& r) {
   // Written through the input's validating type (see Create).
   Validated<sensor_msgs::msg::PointCloud2> wrapped;
   sensor_msgs::msg::PointCloud2& out = wrapped.msg;
@@ -135,26 +123,16 @@ void NodeOutputs::PublishRegistered(const ScanResult& r, const sensor_msgs::msg:
   out.point_step(12);
   out.is_bigendian(false);
   out.is_dense(true);
+  const size_t n = r.deskewed_points_lidar.size();
   std::vector<uint8_t>& data = out.data();
   data.resize(n * 12);
-  const Eigen::Isometry3d& T_world_lidar = r.T_world_lidar;
-  size_t kept = 0;
+  const Eigen::Isometry3f T_world_lidar = r.T_world_lidar.cast<float>();
   for (size_t i = 0; i < n; ++i) {
-    const uint8_t* p = in.data().data() + i * step;
-    float v[3];
-    std::memcpy(&v[0], p + ox, 4);
-    std::memcpy(&v[1], p + oy, 4);
-    std::memcpy(&v[2], p + oz, 4);
-    if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2])) continue;
-    const Eigen::Vector3d w = T_world_lidar * Eigen::Vector3d(v[0], v[1], v[2]);
-    const float o[3] = {static_cast<float>(w.x()), static_cast<float>(w.y()),
-                        static_cast<float>(w.z())};
-    std::memcpy(data.data() + kept * 12, o, 12);
-    ++kept;
+    const Eigen::Vector3f w = T_world_lidar * r.deskewed_points_lidar[i];
+    std::memcpy(data.data() + i * 12, w.data(), 12);
   }
-  data.resize(kept * 12);
-  out.width(static_cast<uint32_t>(kept));
-  out.row_step(static_cast<uint32_t>(kept * 12));
+  out.width(static_cast<uint32_t>(n));
+  out.row_step(static_cast<uint32_t>(n * 12));
   registered_writer_->write(&wrapped);
 }
 

@@ -29,11 +29,9 @@ class NodeOutputs {
               eprosima::fastdds::dds::Publisher* publisher,
               eprosima::fastdds::dds::TypeSupport* cloud_type, std::string* error);
 
-  // Writes every configured output of a result with a valid pose. `angular_rate`: bias-corrected
-  // body rate for the odometry twist; `input`: the scan's cloud, for registered_points (may be
-  // null when that output is off).
-  void Publish(const ScanResult& r, const Eigen::Vector3d& angular_rate,
-               const sensor_msgs::msg::PointCloud2* input);
+  // Writes every configured output of a result with a valid pose (registered_points from its
+  // deskewed_points_lidar: the core fills them when that output is on, CreateCore).
+  void Publish(const ScanResult& r);
 
   // The poses published so far, as a TUM file (config tum_file).
   bool WriteTum(std::string* error) const;
@@ -48,7 +46,7 @@ class NodeOutputs {
     Eigen::Isometry3d T_world_imu;
   };
 
-  void PublishRegistered(const ScanResult& r, const sensor_msgs::msg::PointCloud2& in);
+  void PublishRegistered(const ScanResult& r);
 
   const NodeConfig config_;
   eprosima::fastdds::dds::DataWriter* odometry_writer_ = nullptr;

@@ -35,6 +35,11 @@ void NodeStats::CountResult(const ScanResult& r) {
   }
 }
 
+void NodeStats::CountNotice(const ScanResult& r) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (r.status == Status::kReset) ++summary_.resets;
+}
+
 std::pair<uint64_t, uint64_t> NodeStats::Lost() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return {summary_.scans_lost, summary_.imu_lost};

@@ -40,6 +40,8 @@ class NodeStats {
   uint64_t Add(uint64_t NodeSummary::*counter, uint64_t n = 1);
   // One result returned by the core: status counts, non-finite points, last status.
   void CountResult(const ScanResult& r);
+  // A result that belongs to no scan (ScanResult::input_id 0): a reset the core did itself.
+  void CountNotice(const ScanResult& r);
   // Scans and IMU samples lost in transport so far (sequence gaps), for log lines.
   std::pair<uint64_t, uint64_t> Lost() const;
   // One scan whose odometry was published.

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -270,7 +271,22 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   const auto reg = registered.Samples();
   ASSERT_EQ(reg.size(), odoms.size());
   EXPECT_EQ(reg.back().header().frame_id(), "odom_test");
-  EXPECT_EQ(reg.back().width(), cloud.width());  // every synthetic return is finite
+  {
+    // The points the scan was registered with: downsampled, de-skewed, in the odom frame, so
+    // inside the room's walls (MakeRoomScan: x -15..9, y -8..6, z -1.8..2.7 m from the sensor).
+    const auto& last = reg.back();
+    ASSERT_EQ(last.point_step(), 12u);
+    ASSERT_EQ(last.data().size(), static_cast<size_t>(last.width()) * 12);
+    EXPECT_GT(last.width(), 1000u);
+    EXPECT_LT(last.width(), cloud.width());
+    for (size_t i = 0; i < last.width(); ++i) {
+      float p[3];
+      std::memcpy(p, last.data().data() + 12 * i, 12);
+      ASSERT_TRUE(p[0] > -15.1f && p[0] < 9.1f && p[1] > -8.1f && p[1] < 6.1f && p[2] > -1.9f &&
+                  p[2] < 2.8f)
+          << "point " << i << ": " << p[0] << " " << p[1] << " " << p[2];
+    }
+  }
   // TUM trajectory flushed on SIGINT: one line per odometry message.
   EXPECT_EQ(static_cast<double>(CountLines(tum)), published);
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());

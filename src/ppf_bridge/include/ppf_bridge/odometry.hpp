@@ -23,11 +23,10 @@ struct OdometryFrames {
   std::string base_frame = "base_link";
 };
 
-// `angular_velocity_imu`: bias-corrected gyro reading near the scan end (rad/s, IMU frame); the
-// core's state carries no angular rate. `angular_velocity_variance` fills the twist covariance's
-// rotational diagonal (the core does not estimate it).
+// The twist's angular part is ScanResult::angular_velocity (bias-corrected gyro at the scan end,
+// IMU frame); `angular_velocity_variance` fills the twist covariance's rotational diagonal (the
+// filter does not estimate the rate, it integrates it).
 nav_msgs::msg::Odometry ToOdometryMsg(const ScanResult& result, const OdometryFrames& frames,
-                                      const Eigen::Vector3d& angular_velocity_imu,
                                       double angular_velocity_variance = 1e-4);
 
 // tf2_msgs/TFMessage with the single transform odom -> base (parent odom, child base).

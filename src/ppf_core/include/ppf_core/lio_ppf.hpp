@@ -117,6 +117,10 @@ struct Config {
   PpfConfig ppf;
 
   int num_threads = 0;  // OpenMP threads for de-skew and kNN residuals (0 = OpenMP default)
+
+  // Fill ScanResult::deskewed_points_lidar (the node's registered_points output). Set by the
+  // caller that publishes them, not read from YAML.
+  bool output_deskewed_points = false;
   LogCallback log;      // receives all messages; nullptr = silent
 };
 
@@ -132,6 +136,10 @@ struct StageTimings {
 };
 
 struct ScanResult {
+  // What LioPpf::AddScan returned for the scan this result belongs to. 0 for a notice that
+  // belongs to no scan: a kReset the IMU stream caused (time going back, a gap too long to
+  // bridge), reported before the next scan's result.
+  uint64_t input_id = 0;
   double stamp_s = 0.0;        // time of the pose: the scan end
   double scan_begin_s = 0.0;   // earliest point time
   Status status = Status::kInitializing;
@@ -148,6 +156,8 @@ struct ScanResult {
   Eigen::Isometry3d T_world_lidar = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_world_map = Eigen::Isometry3d::Identity();
   Eigen::Vector3d velocity_world = Eigen::Vector3d::Zero();
+  // IMU frame, gyro bias removed: the last IMU sample at or before stamp_s (odometry twist).
+  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();
   Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();
   Eigen::Vector3d acc_bias = Eigen::Vector3d::Zero();
   Eigen::Vector3d gravity_map = Eigen::Vector3d::Zero();  // the filter's gravity, map frame
@@ -175,6 +185,10 @@ struct ScanResult {
   size_t skeleton_patches = 0;
   size_t map_inserted = 0;        // points offered to the map
 
+  // Config::output_deskewed_points: the points this scan was registered with (range-filtered,
+  // downsampled, de-skewed to stamp_s), LiDAR frame; T_world_lidar places them in the world.
+  std::vector<Eigen::Vector3f> deskewed_points_lidar;
+
   int iterations = 0;
   bool converged = false;
   Eigen::Vector3d eig_rotation = Eigen::Vector3d::Zero();     // J^T J, ascending
@@ -191,8 +205,9 @@ class LioPpf {
   void AddImu(const ImuSample& sample);
 
   // Decodes the cloud now (the view need not outlive the call) and queues it. A malformed cloud
-  // is queued as a kRejected result so results stay in input order.
-  void AddScan(const CloudView& cloud);
+  // is queued as a kRejected result so results stay in input order. Returns the scan's input id
+  // (ScanResult::input_id): 1, 2, 3, ... over the object's life, Reset() included.
+  uint64_t AddScan(const CloudView& cloud);
 
   // Processes queued scans whose IMU coverage reaches the scan end (all of them if flush).
   std::vector<ScanResult> Process(bool flush = false);

@@ -35,7 +35,7 @@ void Usage() {
       stderr,
       "usage: ppf_replay --bag DIR [--rate R] [--loop] [--start SEC] [--topics T ...]\n"
       "                  [--remap FROM:=TO ...] [--best-effort] [--depth N]\n"
-      "                  [--wait-matched SEC] [--linger SEC] [--domain ID]\n"
+      "                  [--wait-matched SEC] [--delay SEC] [--linger SEC] [--domain ID]\n"
       "                  [--profiles XML] [--profile NAME] [--fastdds-defaults]\n"
       "  --rate R          playback speed factor (default 1)\n"
       "  --loop            start over at the end (until SIGINT)\n"
@@ -46,6 +46,10 @@ void Usage() {
       "                    reliable and best-effort readers)\n"
       "  --depth N         writer history depth per topic (default 50)\n"
       "  --wait-matched S  before playing, wait up to S s until every writer has a reader\n"
+      "  --delay S         after --wait-matched saw every topic matched, wait S s more before\n"
+      "                    playing (default 0.5): the subscribers match our writers on their own\n"
+      "                    schedule (up to a discovery heartbeat, 3 s, late on a loaded machine)\n"
+      "                    and drop what arrives before that\n"
       "  --linger S        keep the writers S s after the last message (default 1) so\n"
       "                    best-effort readers take the tail before the writers leave\n"
       "  --profiles XML    Fast DDS XML (default: FASTRTPS_DEFAULT_PROFILES_FILE if set, else\n"
@@ -73,7 +77,7 @@ struct TopicOut {
 
 int main(int argc, char** argv) {
   std::string bag_dir;
-  double rate = 1.0, start_s = 0.0, wait_matched_s = 0.0, linger_s = 1.0;
+  double rate = 1.0, start_s = 0.0, wait_matched_s = 0.0, linger_s = 1.0, delay_s = 0.5;
   bool loop = false, best_effort = false;
   int depth = 50;
   std::vector<std::string> topics;
@@ -96,6 +100,8 @@ int main(int argc, char** argv) {
       depth = std::max(1, std::atoi(argv[++i]));
     } else if (a == "--wait-matched" && i + 1 < argc) {
       wait_matched_s = std::atof(argv[++i]);
+    } else if (a == "--delay" && i + 1 < argc) {
+      delay_s = std::max(0.0, std::atof(argv[++i]));
     } else if (a == "--linger" && i + 1 < argc) {
       linger_s = std::max(0.0, std::atof(argv[++i]));
     } else if (a == "--topics") {
@@ -185,8 +191,8 @@ int main(int argc, char** argv) {
     if (!all) Log(Level::kWarn, "not every topic has a subscriber; playing anyway");
     // Our writer matching a reader does not mean that reader has matched our writer yet (the
     // two directions of discovery complete independently); a sample sent in between is ignored
-    // by the reader. Give the other direction a moment.
-    if (all) std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    // by the reader, without a trace. Give the other direction a moment (--delay).
+    if (all) std::this_thread::sleep_for(std::chrono::duration<double>(delay_s));
   }
   std::printf("PPF_REPLAY_START topics=%zu\n", outs.size());
   std::fflush(stdout);

@@ -105,7 +105,11 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   ASSERT_TRUE(record.WaitForLine("PPF_RECORD_MATCHED /odometry 1", &line, 20s));
 
   std::vector<std::string> play_args = {PPF_REPLAY_EXE,       "--bag",          bag, "--rate",
-                                        std::to_string(rate), "--wait-matched", "15"};
+                                        std::to_string(rate), "--wait-matched", "15",
+                                        // The node may match our writers up to a discovery
+                                        // heartbeat (3 s) after we matched its readers: the CI's
+                                        // stage at load 12 lost the first 0.05 s that way.
+                                        "--delay",            "4"};
   play_args.insert(play_args.end(), dds.begin(), dds.end());
   ASSERT_TRUE(replay.Start(play_args, {}, dir + "/replay.log"));
   // Sample the node's memory while the bag plays.

@@ -88,8 +88,8 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
     if (!keep(tp)) continue;
     ++valid;
     const uint64_t key =
-        PackKey(FloorToInt(tp.p.x() * inv), FloorToInt(tp.p.y() * inv),
-                FloorToInt(tp.p.z() * inv), static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
+        PackKey(FloorToInt(tp.p.x() * inv), FloorToInt(tp.p.y() * inv), FloorToInt(tp.p.z() * inv),
+                static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
     size_t h = Mix(key) >> shift;
     while (table_[h].generation == generation_ && table_[h].key != key) h = (h + 1) & mask;
     Slot& slot = table_[h];

@@ -136,8 +136,7 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
 
     // The reference is fixed during the batch, so the pre-test decisions do not depend on threads.
     const long reference = std::max<long>(best_count, min_inliers);
-    const bool pretest =
-        stride > 1 && reference * m >= kPretestMinExpected * static_cast<long>(n);
+    const bool pretest = stride > 1 && reference * m >= kPretestMinExpected * static_cast<long>(n);
 #pragma omp parallel for schedule(static) if (static_cast <long>(n) * filled > kParallelWork)
     for (int b = 0; b < filled; ++b) {
       if (pretest) {

@@ -271,7 +271,8 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
     if (ft->type == FieldType::kFloat32) {
       for_each_point([&](size_t i, const uint8_t* p) { raw_t[i] = ReadFloat32(p + ft->offset); });
     } else {
-      for_each_point([&](size_t i, const uint8_t* p) { raw_t[i] = ReadAs(p + ft->offset, ft->type); });
+      for_each_point(
+          [&](size_t i, const uint8_t* p) { raw_t[i] = ReadAs(p + ft->offset, ft->type); });
     }
   }
   // Detect once; a later change of layout (different field) triggers a new detection.
@@ -313,7 +314,8 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
     }
     tp.p = xyz.cast<float>();
     if (fi) {
-      const double v = intensity_f32 ? ReadFloat32(p + fi->offset) : ReadAs(p + fi->offset, fi->type);
+      const double v =
+          intensity_f32 ? ReadFloat32(p + fi->offset) : ReadAs(p + fi->offset, fi->type);
       tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
     }
     out->points.push_back(tp);

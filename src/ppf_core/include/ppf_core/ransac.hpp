@@ -49,7 +49,8 @@ struct RansacResult {
   int num_inliers = 0;         // of the best hypothesis counted in full
   int iterations = 0;          // scored hypotheses
   int degenerate_samples = 0;  // rejected samples (coincident or collinear)
-  int pretest_rejected = 0;    // hypotheses rejected on a point subset (ransac.cpp), not counted in full
+  // Hypotheses rejected on a point subset (ransac.cpp): scored, but not counted in full.
+  int pretest_rejected = 0;
 };
 
 // Adaptive RANSAC iteration count for inlier ratio w and confidence p, capped at max_iterations.

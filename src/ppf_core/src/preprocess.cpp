@@ -19,6 +19,14 @@ uint64_t PackKey(int64_t x, int64_t y, int64_t z, int64_t bucket) {
 
 uint64_t Mix(uint64_t key) { return key * 0x9E3779B97F4A7C15ull; }
 
+// floor() for the voxel index of a range-filtered (finite, bounded) coordinate: truncation, one
+// less for negative non-integers. Equal to std::floor there (the truncation of a float is a float),
+// without the rounding-mode sequence the compiler emits for floorf on baseline x86-64.
+int64_t FloorToInt(float v) {
+  const int64_t i = static_cast<int64_t>(v);
+  return i - (v < static_cast<float>(i) ? 1 : 0);
+}
+
 }  // namespace
 
 void VoxelGridDownsampler::Reserve(size_t expected_voxels) {
@@ -72,16 +80,16 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
   const float inv = static_cast<float>(1.0 / options.voxel_size);
   const double t_ref = t_begin;
   const double inv_bucket = options.time_bucket_s > 0.0 ? 1.0 / options.time_bucket_s : 0.0;
+  size_t mask = table_.size() - 1;
+  int shift = 64 - __builtin_ctzll(table_.size());
+  size_t valid = 0;
   for (size_t i = 0; i < in.size(); i += stride) {
     const TimedPoint& tp = in[i];
     if (!keep(tp)) continue;
-    ++stats.valid_points;
-    const uint64_t key = PackKey(static_cast<int64_t>(std::floor(tp.p.x() * inv)),
-                                 static_cast<int64_t>(std::floor(tp.p.y() * inv)),
-                                 static_cast<int64_t>(std::floor(tp.p.z() * inv)),
-                                 static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
-    const size_t mask = table_.size() - 1;
-    const int shift = 64 - __builtin_ctzll(table_.size());
+    ++valid;
+    const uint64_t key =
+        PackKey(FloorToInt(tp.p.x() * inv), FloorToInt(tp.p.y() * inv), FloorToInt(tp.p.z() * inv),
+                static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
     size_t h = Mix(key) >> shift;
     while (table_[h].generation == generation_ && table_[h].key != key) h = (h + 1) & mask;
     Slot& slot = table_[h];
@@ -90,7 +98,11 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
       index = static_cast<uint32_t>(acc_.size());
       slot = Slot{key, generation_, index};
       acc_.emplace_back();
-      if (2 * acc_.size() > table_.size()) Reserve(acc_.size() * 2);  // moves slots, not indices
+      if (2 * acc_.size() > table_.size()) {
+        Reserve(acc_.size() * 2);  // moves slots, not indices
+        mask = table_.size() - 1;
+        shift = 64 - __builtin_ctzll(table_.size());
+      }
     }
     Accumulator& acc = acc_[index];
     acc.x += tp.p.x();
@@ -100,6 +112,7 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
     acc.intensity += tp.intensity;
     ++acc.count;
   }
+  stats.valid_points = valid;
   out->resize(acc_.size());
   for (size_t i = 0; i < acc_.size(); ++i) {
     const Accumulator& a = acc_[i];

@@ -23,15 +23,30 @@ struct Hypothesis {
 // instruction); with Vector3f's 12-byte stride it does not.
 struct SoaPoints {
   std::vector<float> x, y, z;
-  explicit SoaPoints(const std::vector<Eigen::Vector3f>& pts)
-      : x(pts.size()), y(pts.size()), z(pts.size()) {
-    for (size_t i = 0; i < pts.size(); ++i) {
-      x[i] = pts[i].x();
-      y[i] = pts[i].y();
-      z[i] = pts[i].z();
+  // Every stride-th point of pts (all of them for stride 1).
+  SoaPoints(const std::vector<Eigen::Vector3f>& pts, size_t stride) {
+    const size_t m = (pts.size() + stride - 1) / stride;
+    x.resize(m);
+    y.resize(m);
+    z.resize(m);
+    for (size_t i = 0, j = 0; j < m; i += stride, ++j) {
+      x[j] = pts[i].x();
+      y[j] = pts[i].y();
+      z[j] = pts[i].z();
     }
   }
 };
+
+// Pre-test: most hypotheses (three points on different surfaces) have a small fraction of the
+// support of the best plane so far, or of the least support a plane needs (min_inliers). Each is
+// first counted on a strided subset (every kPretestMaxStride-th point at most, at least
+// kPretestMinSubset points) and only counted in full if its subset count projects to at least half
+// that reference. The rejection is trusted only when the reference's expected subset count is at
+// least kPretestMinExpected, so a hypothesis as good as the reference is rejected only by a rare
+// sampling fluctuation (and one merely equal to the best would not replace it anyway).
+constexpr size_t kPretestMaxStride = 8;
+constexpr size_t kPretestMinSubset = 256;
+constexpr long kPretestMinExpected = 16;
 
 int CountInliersSoa(const SoaPoints& p, const Hypothesis& h, float delta) {
   const float nx = h.n.x(), ny = h.n.y(), nz = h.n.z(), d = h.d;
@@ -84,8 +99,12 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
   const int max_iterations = std::max(1, params.max_iterations);
   const int max_degenerate = std::max(1, params.max_degenerate_samples);
   const float delta = static_cast<float>(params.delta);
+  const int min_inliers = std::max(3, params.min_inliers);
 
-  const SoaPoints soa(points);
+  const SoaPoints soa(points, 1);
+  const size_t stride = std::clamp<size_t>(n / kPretestMinSubset, 1, kPretestMaxStride);
+  const SoaPoints subset(points, stride > 1 ? stride : n);  // unused when stride is 1
+  const long m = static_cast<long>(subset.x.size());
   int needed = max_iterations;
   int best_count = -1;
   Hypothesis best{Eigen::Vector3f::UnitZ(), 0.0f};
@@ -115,11 +134,24 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
     }
     if (filled == 0) break;
 
+    // The reference is fixed during the batch, so the pre-test decisions do not depend on threads.
+    const long reference = std::max<long>(best_count, min_inliers);
+    const bool pretest = stride > 1 && reference * m >= kPretestMinExpected * static_cast<long>(n);
 #pragma omp parallel for schedule(static) if (static_cast <long>(n) * filled > kParallelWork)
-    for (int b = 0; b < filled; ++b) batch_count[b] = CountInliersSoa(soa, batch[b], delta);
+    for (int b = 0; b < filled; ++b) {
+      if (pretest) {
+        const long sub = CountInliersSoa(subset, batch[b], delta);
+        if (2 * sub * static_cast<long>(n) < reference * m) {
+          batch_count[b] = -1;  // rejected: not counted, cannot become the best
+          continue;
+        }
+      }
+      batch_count[b] = CountInliersSoa(soa, batch[b], delta);
+    }
 
     for (int b = 0; b < filled; ++b) {
       ++result.iterations;
+      if (batch_count[b] < 0) ++result.pretest_rejected;
       if (batch_count[b] > best_count) {
         best_count = batch_count[b];
         best = batch[b];
@@ -129,11 +161,11 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
     }
   }
 
-  if (best_count < 0) return result;  // only degenerate samples
+  if (best_count < 0) return result;  // only degenerate samples, or none passed the pre-test
   result.num_inliers = best_count;
   result.plane.n = best.n.cast<double>().normalized();
   result.plane.d = static_cast<double>(best.d);
-  result.success = best_count >= std::max(3, params.min_inliers);
+  result.success = best_count >= min_inliers;
   return result;
 }
 

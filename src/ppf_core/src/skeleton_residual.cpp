@@ -4,6 +4,10 @@
 #include <cmath>
 #include <limits>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include "ppf_core/plane_prefitter.hpp"
 #include "ppf_core/skeleton_window.hpp"
 
@@ -17,7 +21,8 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
                    const std::vector<Eigen::Vector3d>& own_normals, double normal_gate_deg,
                    const Eigen::Isometry3d& T_world_lidar, const std::vector<Plane>& window_world,
                    double eps, std::vector<SkeletonMatch>* matches,
-                   const PlanePatchMap* patches = nullptr, bool window_fallback = true) {
+                   const PlanePatchMap* patches = nullptr, bool window_fallback = true,
+                   int num_threads = 0) {
   matches->clear();
   const bool have_normals = own_normals.size() == skeleton_indices.size();
   const bool use_patches = patches != nullptr && have_normals && patches->num_cells() > 0;
@@ -41,7 +46,12 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
   // thousand points, where it pays for the fork/join. Measured with ppf_compare, urban HDL-64
   // 60 s, 2 threads, quiet machine: residual stage 3.06-3.17 -> 2.68-2.78 ms per scan (5.2k
   // skeleton points); results are identical (each point writes its own slot).
-#pragma omp parallel for schedule(static) if (n > 2048)
+  // The configured thread count, as the other stages use: without it this loop ran on the
+  // OpenMP default (all cores) even in a run configured for one thread.
+#ifdef _OPENMP
+  const int threads = num_threads > 0 ? num_threads : omp_get_max_threads();
+#endif
+#pragma omp parallel for schedule(static) if (n > 2048) num_threads(threads)
   for (long i = 0; i < n; ++i) {
     SkeletonMatch m;
     const int idx = skeleton_indices[i];
@@ -161,7 +171,8 @@ void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lida
                                            std::vector<PointPlaneRow>* rows) {
   if (frame_ == nullptr) return;
   MatchSkeleton(frame_->points_lidar, skeleton_indices_, own_normals_, normal_gate_deg_,
-                T_world_lidar, planes_world_, eps_, &matches_, patches_, window_fallback_);
+                T_world_lidar, planes_world_, eps_, &matches_, patches_, window_fallback_,
+                num_threads_);
   rows->reserve(rows->size() + matches_.size());
   for (const SkeletonMatch& m : matches_) {
     PointPlaneRow row;

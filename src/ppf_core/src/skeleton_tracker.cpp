@@ -19,6 +19,7 @@ SkeletonTracker::SkeletonTracker(const PpfConfig& config)
       provider_(std::make_shared<SkeletonResidualProvider>(
           &window_, prefitter_.config().point_to_plane_thresh)) {
   provider_->SetPrefitSource(&prefit_, prefitter_.config().skeleton_normal_gate_deg);
+  provider_->SetNumThreads(prefitter_.config().num_threads);
   if (prefitter_.config().anchor_patches) {
     provider_->SetPatchMap(&patches_, prefitter_.config().patch_window_fallback);
   }

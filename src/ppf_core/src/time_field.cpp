@@ -18,6 +18,12 @@ const FieldDesc* FindField(const CloudView& cloud, const std::string& name) {
   return nullptr;
 }
 
+inline double ReadFloat32(const uint8_t* p) {
+  float v;
+  std::memcpy(&v, p, 4);
+  return v;
+}
+
 // Reads one element; the caller guarantees offset + size <= point_step within the buffer.
 double ReadAs(const uint8_t* p, FieldType type) {
   switch (type) {
@@ -250,15 +256,24 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
 
   const uint64_t row_step =
       cloud.row_step == 0 ? static_cast<uint64_t>(cloud.width) * cloud.point_step : cloud.row_step;
-  auto point_ptr = [&](size_t i) {
-    const size_t row = i / cloud.width, col = i % cloud.width;
-    return cloud.data + row * row_step + static_cast<uint64_t>(col) * cloud.point_step;
+  // Visits the points in index order, row by row (no division per point).
+  auto for_each_point = [&](auto&& visit) {
+    size_t i = 0;
+    for (uint32_t row = 0; row < cloud.height; ++row) {
+      const uint8_t* p = cloud.data + row * row_step;
+      for (uint32_t col = 0; col < cloud.width; ++col, ++i, p += cloud.point_step) visit(i, p);
+    }
   };
 
   std::vector<double> raw_t;
   if (ft) {
     raw_t.resize(n);
-    for (size_t i = 0; i < n; ++i) raw_t[i] = ReadAs(point_ptr(i) + ft->offset, ft->type);
+    if (ft->type == FieldType::kFloat32) {
+      for_each_point([&](size_t i, const uint8_t* p) { raw_t[i] = ReadFloat32(p + ft->offset); });
+    } else {
+      for_each_point(
+          [&](size_t i, const uint8_t* p) { raw_t[i] = ReadAs(p + ft->offset, ft->type); });
+    }
   }
   // Detect once; a later change of layout (different field) triggers a new detection.
   if (!info_.detected || info_.present != (ft != nullptr) ||
@@ -284,23 +299,39 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
     }
   }
 
-  for (size_t i = 0; i < n; ++i) {
-    const uint8_t* p = point_ptr(i);
+  // float32 x/y/z and intensity (nearly every driver) skip the per-element type dispatch; the
+  // values and the validity test are the same as through ReadAs.
+  const bool xyz_f32 = fx->type == FieldType::kFloat32 && fy->type == FieldType::kFloat32 &&
+                       fz->type == FieldType::kFloat32;
+  const bool intensity_f32 = fi && fi->type == FieldType::kFloat32;
+  auto decode = [&](size_t i, const uint8_t* p, const Eigen::Vector3d& xyz) {
     TimedPoint tp;
-    const Eigen::Vector3d xyz(ReadAs(p + fx->offset, fx->type), ReadAs(p + fy->offset, fy->type),
-                              ReadAs(p + fz->offset, fz->type));
     tp.t = ft ? base + raw_t[i] * scale : cloud.stamp_s;
     // float64 coordinates beyond float range would overflow the conversion: treat as invalid.
     if (!xyz.allFinite() || xyz.cwiseAbs().maxCoeff() > 1e30 || !std::isfinite(tp.t)) {
       ++out->dropped_nan;
-      continue;
+      return;
     }
     tp.p = xyz.cast<float>();
     if (fi) {
-      const double v = ReadAs(p + fi->offset, fi->type);
+      const double v =
+          intensity_f32 ? ReadFloat32(p + fi->offset) : ReadAs(p + fi->offset, fi->type);
       tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
     }
     out->points.push_back(tp);
+  };
+  if (xyz_f32) {
+    for_each_point([&](size_t i, const uint8_t* p) {
+      decode(i, p,
+             Eigen::Vector3d(ReadFloat32(p + fx->offset), ReadFloat32(p + fy->offset),
+                             ReadFloat32(p + fz->offset)));
+    });
+  } else {
+    for_each_point([&](size_t i, const uint8_t* p) {
+      decode(i, p,
+             Eigen::Vector3d(ReadAs(p + fx->offset, fx->type), ReadAs(p + fy->offset, fy->type),
+                             ReadAs(p + fz->offset, fz->type)));
+    });
   }
 
   if (!ft) {

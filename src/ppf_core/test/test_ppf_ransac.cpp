@@ -77,6 +77,32 @@ TEST(PpfRansac, AdaptiveIterationCount) {
   EXPECT_LE(r.iterations, 32);  // first batch (16) already has w ~ 1 -> k = 1
 }
 
+TEST(PpfRansac, PretestSkipsWeakHypothesesButKeepsTheDominantPlane) {
+  // Ground 25 % of the points, a wall 10 %, the rest clutter: w^3 ~ 1.6 % -> ~290 hypotheses.
+  // Once the ground is found, hypotheses through clutter or the wall project to far less than
+  // half its support on the subset and are not counted in full.
+  std::vector<Eigen::Vector3f> pts;
+  std::mt19937 rng(9);
+  test::AddPatch({-20, -20, -1.5}, Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(), 40, 40, 2000,
+                 0.02, &rng, &pts);
+  test::AddPatch({-20, 10, -1.5}, Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitZ(), 40, 6, 800,
+                 0.02, &rng, &pts);
+  test::AddClutter({-20, -20, 0.0}, {20, 20, 5}, 5200, &rng, &pts);
+  RansacParams params;
+  SplitMix64 srng(3);
+  const RansacResult r = FitPlaneRansac(pts, params, &srng);
+  ASSERT_TRUE(r.success);
+  const Plane ground{Eigen::Vector3d::UnitZ(), 1.5};
+  EXPECT_LT(test::NormalErrorDeg(r.plane, ground), 3.0);
+  EXPECT_LT(test::OffsetError(r.plane, ground), 0.1);
+  EXPECT_GT(r.num_inliers, 1800);
+  EXPECT_GT(r.iterations, 250);
+  EXPECT_GT(r.pretest_rejected, 200);
+  EXPECT_LT(r.pretest_rejected, r.iterations);
+  // The reported support is the full count of the returned plane.
+  EXPECT_NEAR(r.num_inliers, CountPlaneInliers(pts, r.plane, params.delta), 2);
+}
+
 TEST(PpfRansac, DegenerateInputFailsCleanly) {
   RansacParams params;
   params.min_inliers = 3;

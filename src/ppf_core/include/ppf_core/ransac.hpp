@@ -46,9 +46,11 @@ struct RansacParams {
 struct RansacResult {
   bool success = false;
   Plane plane;
-  int num_inliers = 0;
+  int num_inliers = 0;         // of the best hypothesis counted in full
   int iterations = 0;          // scored hypotheses
   int degenerate_samples = 0;  // rejected samples (coincident or collinear)
+  // Hypotheses rejected on a point subset (ransac.cpp): scored, but not counted in full.
+  int pretest_rejected = 0;
 };
 
 // Adaptive RANSAC iteration count for inlier ratio w and confidence p, capped at max_iterations.

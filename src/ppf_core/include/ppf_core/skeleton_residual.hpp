@@ -70,6 +70,8 @@ class SkeletonResidualProvider : public ResidualProvider {
     patches_ = patches;
     window_fallback_ = window_fallback;
   }
+  // OpenMP threads for the matching loop (PpfConfig::num_threads); 0 = the OpenMP default.
+  void SetNumThreads(int num_threads) { num_threads_ = num_threads; }
   std::string Name() const override { return "skeleton"; }
   void BeginScan(const ScanFrame& frame) override;
   void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
@@ -91,6 +93,7 @@ class SkeletonResidualProvider : public ResidualProvider {
   const PlanePatchMap* patches_ = nullptr;
   bool window_fallback_ = true;
   std::vector<Eigen::Vector3d> own_normals_;  // per skeleton_indices_ entry, scan frame
+  int num_threads_ = 0;
 };
 
 }  // namespace ppf

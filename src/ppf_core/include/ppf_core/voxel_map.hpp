@@ -102,13 +102,39 @@ class VoxelMap {
     for (const Point& p : points) Insert(p);
   }
 
-  // Up to k nearest stored points within max_range of `query`, nearest first. Returns the count.
+  // Up to k nearest stored points within max_range of `query`, nearest first (equal distances in
+  // the order the voxels are visited). Returns the count.
   size_t GetClosest(const Point& query, size_t k, double max_range, std::vector<Point>* out) const {
     out->clear();
     if (k == 0 || !query.allFinite()) return 0;
     const float max_d2 = static_cast<float>(max_range * max_range);
     const VoxelKey c = ToVoxelKey(query, inv_resolution_);
-    // Small fixed buffer of (distance^2, point); k is tiny (5) in every use.
+    // k is tiny (5) in every use: an insertion-sorted array on the stack keeps the k best so far.
+    // A per-query candidate vector and a partial sort cost a heap allocation and a heap sort per
+    // query, which dominated the kNN residual stage.
+    if (k <= kMaxStackK) {
+      float best_d2[kMaxStackK];
+      Point best[kMaxStackK];
+      size_t n = 0;
+      for (const VoxelKey& o : offsets_) {
+        const auto it = index_.find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
+        if (it == index_.end()) continue;
+        for (const Point& p : it->second->points) {
+          const float d2 = (p - query).squaredNorm();
+          if (!(d2 <= max_d2)) continue;
+          if (n == k && !(d2 < best_d2[k - 1])) continue;
+          size_t j = n < k ? n++ : k - 1;
+          for (; j > 0 && best_d2[j - 1] > d2; --j) {
+            best_d2[j] = best_d2[j - 1];
+            best[j] = best[j - 1];
+          }
+          best_d2[j] = d2;
+          best[j] = p;
+        }
+      }
+      out->assign(best, best + n);
+      return n;
+    }
     std::vector<std::pair<float, Point>> cand;
     cand.reserve(64);
     for (const VoxelKey& o : offsets_) {
@@ -157,6 +183,8 @@ class VoxelMap {
   size_t capacity_points() const { return options_.max_voxels * options_.max_points_per_voxel; }
 
  private:
+  static constexpr size_t kMaxStackK = 16;
+
   struct Voxel {
     VoxelKey key;
     std::vector<Point> points;

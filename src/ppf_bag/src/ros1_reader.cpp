@@ -131,27 +131,50 @@ BufRecord ParseBufRecord(const std::vector<uint8_t>& b, size_t pos, const std::s
   return r;
 }
 
+// Streams, so the buffer grows only as output really arrives: a corrupt `size` field of up to
+// 4 GiB must not allocate 4 GiB up front (bz2 has no bounded expansion ratio to check it against).
 std::vector<uint8_t> Bz2Decompress(const std::vector<uint8_t>& in, uint32_t expected,
                                    const std::string& where) {
-  std::vector<uint8_t> out(std::max<uint32_t>(expected, 1));
-  unsigned int out_len = expected;
-  const int rc =
-      BZ2_bzBuffToBuffDecompress(reinterpret_cast<char*>(out.data()), &out_len,
-                                 const_cast<char*>(reinterpret_cast<const char*>(in.data())),
-                                 static_cast<unsigned int>(in.size()), 0, 0);
-  if (rc == BZ_OUTBUFF_FULL) {
-    throw BagError(where + ": bz2 chunk inflates to more than its declared size " +
-                   std::to_string(expected));
+  bz_stream s;
+  std::memset(&s, 0, sizeof(s));
+  if (BZ2_bzDecompressInit(&s, 0, 0) != BZ_OK) throw BagError(where + ": bzlib init failed");
+  std::unique_ptr<bz_stream, int (*)(bz_stream*)> guard(&s, &BZ2_bzDecompressEnd);
+  // One byte beyond `expected` makes output past the declared size detectable.
+  const uint64_t limit = uint64_t(expected) + 1;
+  std::vector<uint8_t> out(std::min<uint64_t>(limit, 1 << 20));
+  s.next_in = const_cast<char*>(reinterpret_cast<const char*>(in.data()));
+  s.avail_in = static_cast<unsigned int>(in.size());
+  uint64_t produced = 0;
+  for (;;) {
+    if (produced == out.size()) {
+      if (out.size() >= limit) break;
+      out.resize(std::min<uint64_t>(limit, out.size() * 2));
+    }
+    s.next_out = reinterpret_cast<char*>(out.data() + produced);
+    s.avail_out = static_cast<unsigned int>(out.size() - produced);
+    const unsigned int before = s.avail_out;
+    const int rc = BZ2_bzDecompress(&s);
+    produced += before - s.avail_out;
+    if (rc == BZ_STREAM_END) break;
+    if (rc != BZ_OK) {
+      throw BagError(where + ": bz2 chunk is corrupt (bzlib error " + std::to_string(rc) + ")");
+    }
+    if (s.avail_in == 0 && s.avail_out > 0) {
+      throw BagError(where + ": bz2 chunk is truncated (stream ends early)");
+    }
   }
-  if (rc != BZ_OK)
-    throw BagError(where + ": bz2 chunk is corrupt (bzlib error " + std::to_string(rc) + ")");
-  if (out_len != expected) {
-    throw BagError(where + ": bz2 chunk inflated to " + std::to_string(out_len) +
+  if (produced != expected) {
+    throw BagError(where + ": bz2 chunk inflated to " +
+                   (produced > expected ? "more than" : std::to_string(produced)) +
                    " bytes, expected " + std::to_string(expected));
   }
   out.resize(expected);
   return out;
 }
+
+// LZ4 never expands by more than 255:1 (a match is at most 255 bytes per length byte), so a
+// declared size beyond that is a corrupt field; checked before the decompressor allocates it.
+constexpr uint64_t kLz4MaxRatio = 256;
 
 struct Connection {
   uint32_t id = 0;
@@ -444,6 +467,10 @@ class Ros1Reader final : public StorageReader {
       } else if (compression == "bz2") {
         buf = std::make_shared<std::vector<uint8_t>>(Bz2Decompress(raw, size, where));
       } else if (compression == "lz4") {
+        if (size > raw.size() * kLz4MaxRatio + 1024) {
+          throw BagError("lz4 chunk of " + std::to_string(raw.size()) + " bytes declares " +
+                         std::to_string(size) + " uncompressed bytes, beyond lz4's ratio");
+        }
         buf =
             std::make_shared<std::vector<uint8_t>>(Decompress("lz4", raw.data(), raw.size(), size));
       } else {

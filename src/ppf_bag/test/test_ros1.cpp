@@ -326,6 +326,29 @@ TEST_P(Ros1Bag, DamagedChunkIsRefusedWithItsOffset) {
       << ReadError(tmp / "op.bag");
 }
 
+// A chunk's declared uncompressed size is not trusted for allocation: 3.75 GiB is refused by
+// comparison (none), by lz4's maximum ratio, or by streaming bz2 until its real end.
+TEST_P(Ros1Bag, ImplausibleChunkSizeIsRefused) {
+  const WrittenBag& b = Bag(GetParam());
+  auto bytes = ReadFileBytes(b.path);
+  const size_t chunk = b.expected["chunks"][0].as<size_t>();
+  const size_t field = Find(bytes, "size=", chunk);
+  ASSERT_LT(field, chunk + 64);
+  const uint32_t real = U32At(bytes, field + 5);
+  const uint32_t huge = 0xf0000000u;
+  std::memcpy(bytes.data() + field + 5, &huge, 4);
+  TempDir tmp;
+  WriteFileBytes(tmp / "s.bag", bytes);
+  const std::string e = ReadError(tmp / "s.bag");
+  const std::string at = "record at byte offset " + std::to_string(chunk) + ": ";
+  const std::map<std::string, std::string> want = {
+      {"none", "but declares 4026531840"},
+      {"lz4", "declares 4026531840 uncompressed bytes, beyond lz4's ratio"},
+      {"bz2", "bz2 chunk inflated to " + std::to_string(real) + " bytes, expected 4026531840"}};
+  EXPECT_NE(e.find(at), std::string::npos) << e;
+  EXPECT_NE(e.find(want.at(GetParam())), std::string::npos) << e;
+}
+
 TEST_P(Ros1Bag, DamagedIndexIsRefusedWithItsOffset) {
   const WrittenBag& b = Bag(GetParam());
   auto bytes = ReadFileBytes(b.path);

@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Writes a ROS 1 bag with Debian's rosbag (the independent writer of test_ros1.cpp).
 
-usage: write_ros1_bag.py OUT.bag none|bz2|lz4 CHUNK_THRESHOLD EXPECTED.json
+usage: write_ros1_bag.py OUT.bag none|bz2|lz4 CHUNK_THRESHOLD EXPECTED.json [IMU_COUNT]
+
+IMU_COUNT (default 40) scales the whole sequence; fuzz/corpus/fuzz_bag_ros1 holds bags of 8.
 
 Content is deterministic (fixed seed): PointCloud2 on /points, Imu on /imu, std_msgs/String on
 /chatter (a type the reader passes through), and livox_ros_driver(2)/CustomMsg on /livox and
@@ -57,12 +59,13 @@ def f64(rng):
 
 def main():
     out, compression, threshold, expected_path = sys.argv[1:5]
+    imu_count = int(sys.argv[5]) if len(sys.argv) > 5 else 40
     rng = random.Random(15)
     t0 = 1700000000
     records = []
     livox = {p: livox_classes(p) for p in ("livox_ros_driver", "livox_ros_driver2")}
     with rosbag.Bag(out, "w", compression=compression, chunk_threshold=int(threshold)) as bag:
-        for i in range(40):
+        for i in range(imu_count):
             t_ns = t0 * 10**9 + i * 5000000 + 123
             if i == 17:
                 t_ns -= 7000000  # before message 16: out of order within the bag

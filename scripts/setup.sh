@@ -15,6 +15,8 @@ cd "$ROOT"
 # Kept in one place: docker/Dockerfile and test/test_docker_files.py check against this list.
 # clang and its runtimes (libclang-rt-14-dev: ASan, UBSan, TSan, libFuzzer) serve the sanitizer
 # and fuzzing stages of scripts/test.sh (scripts/sanitize.sh, scripts/fuzz.sh).
+# python3-rosbag and python3-sensor-msgs (Debian's ROS 1 Python, for /usr/bin/python3) are the
+# independent ROS 1 bag writer of ppf_bag's ROS 1 reader tests.
 PPF_DEBIAN_PACKAGES=(
   build-essential cmake pkg-config git ca-certificates
   colcon python3-colcon-cmake python3-colcon-package-selection python3-colcon-test-result
@@ -23,9 +25,10 @@ PPF_DEBIAN_PACKAGES=(
   python3-colcon-package-information python3-colcon-pkg-config python3-colcon-ros
   libfastrtps-dev libfastcdr-dev fastddsgen
   libeigen3-dev libpcl-dev libomp-dev libgtest-dev
-  libyaml-cpp-dev libsqlite3-dev sqlite3 liblz4-dev libzstd-dev
+  libyaml-cpp-dev libsqlite3-dev sqlite3 liblz4-dev libzstd-dev libbz2-dev
   cyclonedds-dev cyclonedds-tools
   python3-yaml nodejs npm
+  python3-rosbag python3-sensor-msgs
   clang libclang-rt-14-dev
 )
 

@@ -21,7 +21,15 @@ namespace fs = std::filesystem;
 namespace ppf::bag {
 
 const char* StorageIdentifier(Storage storage) {
-  return storage == Storage::kSqlite3 ? "sqlite3" : "mcap";
+  switch (storage) {
+    case Storage::kSqlite3:
+      return "sqlite3";
+    case Storage::kMcap:
+      return "mcap";
+    case Storage::kRos1:
+      return "rosbag_v2";
+  }
+  return "unknown";
 }
 
 namespace {
@@ -90,6 +98,9 @@ class Writer::Impl {
     info_.storage = options.storage;
     const bool mcap = options.storage == Storage::kMcap;
     // Validate options before touching the file system.
+    if (options.storage == Storage::kRos1) {
+      throw BagError("ROS 1 bags can be read but not written; write sqlite3 or mcap");
+    }
     if (mcap && !detail::IsSupportedCompression(options.compression)) {
       throw BagError("unsupported MCAP compression '" + options.compression +
                      "' (expected none, lz4 or zstd)");
@@ -192,22 +203,30 @@ const std::string& Writer::storage_file() const { return impl_->path(); }
 // ---------------------------------------------------------------------------------------------
 namespace {
 
-enum class Kind { kSqlite3, kMcap };
-
-Kind SniffFile(const std::string& path) {
+Storage SniffFile(const std::string& path) {
   const std::string ext = fs::path(path).extension().string();
-  if (ext == ".db3") return Kind::kSqlite3;
-  if (ext == ".mcap") return Kind::kMcap;
+  if (ext == ".db3") return Storage::kSqlite3;
+  if (ext == ".mcap") return Storage::kMcap;
+  if (ext == ".bag") return Storage::kRos1;
   detail::InputFile f(path);
   uint8_t head[16] = {};
   if (f.size() >= 16) f.ReadAt(0, head, 16);
-  if (std::memcmp(head, detail::mcap::kMagic, 8) == 0) return Kind::kMcap;
-  if (std::memcmp(head, "SQLite format 3", 16) == 0) return Kind::kSqlite3;
-  throw BagError("'" + path + "' is neither an MCAP file nor a sqlite3 database");
+  if (std::memcmp(head, detail::mcap::kMagic, 8) == 0) return Storage::kMcap;
+  if (std::memcmp(head, "SQLite format 3", 16) == 0) return Storage::kSqlite3;
+  if (std::memcmp(head, "#ROSBAG V", 9) == 0) return Storage::kRos1;
+  throw BagError("'" + path + "' is neither an MCAP file, a sqlite3 database nor a ROS 1 bag");
 }
 
-std::unique_ptr<detail::StorageReader> OpenFile(const std::string& path, Kind kind) {
-  return kind == Kind::kMcap ? detail::OpenMcap(path) : detail::OpenSqlite(path);
+std::unique_ptr<detail::StorageReader> OpenFile(const std::string& path, Storage kind) {
+  switch (kind) {
+    case Storage::kMcap:
+      return detail::OpenMcap(path);
+    case Storage::kRos1:
+      return detail::OpenRos1(path);
+    case Storage::kSqlite3:
+      break;
+  }
+  return detail::OpenSqlite(path);
 }
 
 }  // namespace
@@ -218,8 +237,8 @@ class Reader::Impl {
     if (detail::IsDirectory(path)) {
       OpenDirectory(path);
     } else if (detail::IsRegularFile(path)) {
-      const Kind kind = SniffFile(path);
-      info_.storage = kind == Kind::kMcap ? Storage::kMcap : Storage::kSqlite3;
+      const Storage kind = SniffFile(path);
+      info_.storage = kind;
       sources_.push_back(OpenFile(path, kind));
     } else {
       throw BagError("no such bag: '" + path + "'");
@@ -289,15 +308,17 @@ class Reader::Impl {
     }
     try {
       const std::string id = bag["storage_identifier"].as<std::string>("");
-      Kind kind;
+      Storage kind;
       if (id == "sqlite3") {
-        kind = Kind::kSqlite3;
+        kind = Storage::kSqlite3;
       } else if (id == "mcap") {
-        kind = Kind::kMcap;
+        kind = Storage::kMcap;
+      } else if (id == StorageIdentifier(Storage::kRos1)) {
+        kind = Storage::kRos1;
       } else {
         throw BagError("'" + meta.string() + "': unsupported storage_identifier '" + id + "'");
       }
-      info_.storage = kind == Kind::kMcap ? Storage::kMcap : Storage::kSqlite3;
+      info_.storage = kind;
       const std::string comp = bag["compression_format"].as<std::string>("");
       if (!comp.empty()) {
         throw BagError("'" + meta.string() + "': file-level compression '" + comp +

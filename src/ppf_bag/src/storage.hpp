@@ -1,4 +1,4 @@
-// Internal interfaces between the public Reader/Writer and the two storage backends.
+// Internal interfaces between the public Reader/Writer and the storage backends.
 #pragma once
 
 #include <cstdint>
@@ -37,5 +37,6 @@ std::unique_ptr<StorageWriter> MakeSqliteWriter(const std::string& path);
 std::unique_ptr<StorageWriter> MakeMcapWriter(const std::string& path, const WriterOptions& options);
 std::unique_ptr<StorageReader> OpenSqlite(const std::string& path);
 std::unique_ptr<StorageReader> OpenMcap(const std::string& path);
+std::unique_ptr<StorageReader> OpenRos1(const std::string& path);
 
 }  // namespace ppf::bag::detail

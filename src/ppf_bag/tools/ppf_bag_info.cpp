@@ -1,5 +1,5 @@
-// ppf_bag_info PATH: summary of a bag directory or a single .db3/.mcap file, laid out like
-// `ros2 bag info`.
+// ppf_bag_info PATH: summary of a bag directory or a single .db3/.mcap/.bag (ROS 1) file, laid
+// out like `ros2 bag info`.
 #include <cstdio>
 #include <ctime>
 #include <string>
@@ -25,7 +25,7 @@ std::string FormatTime(int64_t ns) {
 
 int main(int argc, char** argv) {
   if (argc != 2) {
-    std::fprintf(stderr, "usage: %s BAG_DIR|FILE.db3|FILE.mcap\n", argv[0]);
+    std::fprintf(stderr, "usage: %s BAG_DIR|FILE.db3|FILE.mcap|FILE.bag\n", argv[0]);
     return 2;
   }
   try {

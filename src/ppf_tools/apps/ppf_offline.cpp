@@ -25,9 +25,10 @@ namespace {
 
 constexpr const char* kUsage = R"(usage: ppf_offline --bag DIR [options]
 
-Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) without DDS, as fast as possible.
+Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) or a ROS 1 .bag without DDS, as fast as possible.
 
-  --bag PATH            bag directory (metadata.yaml) or a single .db3/.mcap file (required)
+  --bag PATH            bag directory (metadata.yaml), a single .db3/.mcap file or a ROS 1
+                        .bag file (required)
   --config FILE         YAML config (config/<lidar>.yaml); every key optional. Repeatable:
                         later files override earlier ones (e.g. a LiDAR preset, then the
                         robot's calibration.yaml with its T_imu_lidar)

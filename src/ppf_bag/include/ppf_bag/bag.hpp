@@ -1,7 +1,13 @@
-// rosbag2-compatible bag storage: sqlite3 (.db3, Humble/Jazzy/older) and MCAP (ros2 profile).
+// rosbag2-compatible bag storage: sqlite3 (.db3, Humble/Jazzy/older) and MCAP (ros2 profile),
+// plus reading ROS 1 bags (.bag, format 2.0).
 //
 // A bag is a directory holding metadata.yaml plus one or more storage files, exactly as
-// `ros2 bag record` produces it. Readers also accept a single .db3 or .mcap file.
+// `ros2 bag record` produces it. Readers also accept a single .db3, .mcap or .bag file.
+// A ROS 1 bag is read-only. Its sensor_msgs/PointCloud2 and sensor_msgs/Imu messages (and Livox
+// CustomMsg clouds, as PointCloud2) are returned converted to ROS 2 CDR under their ROS 2 type
+// names ("sensor_msgs/msg/Imu", serialization_format "cdr"), so every consumer reads them as it
+// reads a rosbag2 bag; any other type keeps its ROS 1 name ("tf2_msgs/TFMessage") and its ROS 1
+// bytes, with serialization_format "ros1", which consumers that want CDR must skip.
 // Writer and Reader objects are not thread-safe: serialize calls on one object (separate objects
 // are independent).
 #pragma once
@@ -22,9 +28,10 @@ class BagError : public std::runtime_error {
   explicit BagError(const std::string& what) : std::runtime_error("ppf_bag: " + what) {}
 };
 
-enum class Storage { kSqlite3, kMcap };
+enum class Storage { kSqlite3, kMcap, kRos1 };
 
-// "sqlite3" / "mcap", as rosbag2 writes storage_identifier.
+// "sqlite3" / "mcap", as rosbag2 writes storage_identifier; "rosbag_v2" for a ROS 1 bag (the
+// identifier of rosbag2's ROS 1 bag plugin).
 const char* StorageIdentifier(Storage storage);
 
 struct TopicInfo {
@@ -91,7 +98,7 @@ class Writer {
 
 class Reader {
  public:
-  // A directory with metadata.yaml, or a single .db3 / .mcap file.
+  // A directory with metadata.yaml, or a single .db3 / .mcap / .bag (ROS 1) file.
   explicit Reader(const std::string& dir_or_file);
   ~Reader();
   Reader(const Reader&) = delete;

@@ -5,7 +5,7 @@
 #include <fstream>
 #include <random>
 
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
 
 namespace ppf {
 namespace {

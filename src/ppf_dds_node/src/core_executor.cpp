@@ -8,7 +8,7 @@
 #include <utility>
 
 #include "ppf_bridge/convert.hpp"
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
 
 namespace ppf::dds {
 

@@ -188,6 +188,8 @@ ConfigTable CoreConfigTable(Config* c) {
   return t;
 }
 
+// Each note names the YAML key (config/reference.yaml), so a clamped value can be found in the
+// file that set it.
 std::vector<std::string> ValidateConfig(Config* c) {
   std::vector<std::string> notes;
   auto fix = [&notes](bool bad, const std::string& what, auto* field, auto value) {
@@ -198,11 +200,11 @@ std::vector<std::string> ValidateConfig(Config* c) {
       *field = value;
     }
   };
-  fix(!(c->min_range >= 0.0), "min_range", &c->min_range, 0.0);
-  fix(!(c->max_range > c->min_range), "max_range", &c->max_range, c->min_range + 100.0);
-  fix(c->point_stride < 1, "point_stride", &c->point_stride, 1);
-  fix(!(c->scan_voxel_size >= 0.0), "scan_voxel_size", &c->scan_voxel_size, 0.5);
-  fix(c->scan_voxel_size > 0.0 && c->scan_voxel_size < 0.01, "scan_voxel_size", &c->scan_voxel_size,
+  fix(!(c->min_range >= 0.0), "preprocess.min_range", &c->min_range, 0.0);
+  fix(!(c->max_range > c->min_range), "preprocess.max_range", &c->max_range, c->min_range + 100.0);
+  fix(c->point_stride < 1, "preprocess.point_stride", &c->point_stride, 1);
+  fix(!(c->scan_voxel_size >= 0.0), "preprocess.scan_voxel_size", &c->scan_voxel_size, 0.5);
+  fix(c->scan_voxel_size > 0.0 && c->scan_voxel_size < 0.01, "preprocess.scan_voxel_size", &c->scan_voxel_size,
       0.01);
   fix(!(c->map.resolution >= 0.05), "map.resolution", &c->map.resolution, 0.05);
   fix(c->map.max_voxels < 1000, "map.max_voxels", &c->map.max_voxels, size_t{1000});
@@ -210,20 +212,20 @@ std::vector<std::string> ValidateConfig(Config* c) {
       size_t{1});
   fix(!(c->map.min_point_distance >= 0.0), "map.min_point_distance", &c->map.min_point_distance,
       0.0);
-  fix(!(c->map_radius >= 0.0), "map_radius", &c->map_radius, 0.0);
+  fix(!(c->map_radius >= 0.0), "map.radius", &c->map_radius, 0.0);
   fix(!(c->time.scan_period_s > 0.0), "time.scan_period", &c->time.scan_period_s, 0.1);
   fix(!(c->time.unit_scale_s >= 0.0), "time.unit_scale", &c->time.unit_scale_s, 0.0);
-  fix(!(c->init.duration_s >= 0.0), "init.duration", &c->init.duration_s, 1.0);
-  fix(c->init.min_samples < 2, "init.min_samples", &c->init.min_samples, 2);
-  fix(!(c->max_imu_gap_s > 0.0), "max_imu_gap", &c->max_imu_gap_s, 0.5);
-  fix(!(c->max_imu_gap_bridge_s >= 0.0), "max_imu_gap_bridge", &c->max_imu_gap_bridge_s, 0.0);
-  fix(!(c->gap_acc_std >= 0.0), "gap_acc_std", &c->gap_acc_std, 1.0);
-  fix(!(c->gap_gyro_std >= 0.0), "gap_gyro_std", &c->gap_gyro_std, 0.05);
-  fix(!(c->noise.gyro >= 0.0), "noise.gyro", &c->noise.gyro, 0.01);
-  fix(!(c->noise.acc >= 0.0), "noise.acc", &c->noise.acc, 0.02);
-  fix(!(c->noise.gyro_bias >= 0.0), "noise.gyro_bias", &c->noise.gyro_bias, 1e-4);
-  fix(!(c->noise.acc_bias >= 0.0), "noise.acc_bias", &c->noise.acc_bias, 1e-3);
-  fix(!(c->noise.gravity_dir >= 0.0), "noise.gravity_dir", &c->noise.gravity_dir, 0.0);
+  fix(!(c->init.duration_s >= 0.0), "imu.init_duration", &c->init.duration_s, 1.0);
+  fix(c->init.min_samples < 2, "imu.init_min_samples", &c->init.min_samples, 2);
+  fix(!(c->max_imu_gap_s > 0.0), "imu.max_gap", &c->max_imu_gap_s, 0.5);
+  fix(!(c->max_imu_gap_bridge_s >= 0.0), "imu.max_gap_bridge", &c->max_imu_gap_bridge_s, 0.0);
+  fix(!(c->gap_acc_std >= 0.0), "imu.gap_acc_std", &c->gap_acc_std, 1.0);
+  fix(!(c->gap_gyro_std >= 0.0), "imu.gap_gyro_std", &c->gap_gyro_std, 0.05);
+  fix(!(c->noise.gyro >= 0.0), "imu.gyro_noise", &c->noise.gyro, 0.01);
+  fix(!(c->noise.acc >= 0.0), "imu.acc_noise", &c->noise.acc, 0.02);
+  fix(!(c->noise.gyro_bias >= 0.0), "imu.gyro_bias_noise", &c->noise.gyro_bias, 1e-4);
+  fix(!(c->noise.acc_bias >= 0.0), "imu.acc_bias_noise", &c->noise.acc_bias, 1e-3);
+  fix(!(c->noise.gravity_dir >= 0.0), "imu.gravity_dir_noise", &c->noise.gravity_dir, 0.0);
   fix(c->iekf.max_iterations < 1, "iekf.max_iterations", &c->iekf.max_iterations, 1);
   fix(c->iekf.max_iterations > 30, "iekf.max_iterations", &c->iekf.max_iterations, 30);
   fix(!(c->iekf.laser_point_std > 0.0), "iekf.laser_point_std", &c->iekf.laser_point_std, 0.03);
@@ -245,12 +247,12 @@ std::vector<std::string> ValidateConfig(Config* c) {
   const Eigen::Matrix3d R = c->T_imu_lidar.linear();
   if (!c->T_imu_lidar.matrix().allFinite() ||
       (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-3 || R.determinant() < 0) {
-    notes.push_back("T_imu_lidar rotation is not a rotation: re-orthonormalized");
+    notes.push_back("extrinsic.T_imu_lidar rotation is not a rotation: re-orthonormalized");
     if (c->T_imu_lidar.matrix().allFinite() && R.determinant() > 0) {
       c->T_imu_lidar.linear() = NormalizeRotation(R);
     } else {
       c->T_imu_lidar = Eigen::Isometry3d::Identity();
-      notes.back() = "T_imu_lidar invalid: identity used";
+      notes.back() = "extrinsic.T_imu_lidar invalid: identity used";
     }
   }
   return notes;

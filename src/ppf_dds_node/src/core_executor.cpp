@@ -53,7 +53,6 @@ std::unique_ptr<LioPpf> CoreExecutor::CreateCore(const NodeConfig& c, std::strin
   }
   if (c.core_mode == "knn") core_config.mode = Mode::kKnn;
   if (c.core_mode == "ppf") core_config.mode = Mode::kPpf;
-  for (const auto& note : ValidateConfig(&core_config)) Log(Level::kWarn, "core config: " + note);
   core_config.log = [](LogLevel level, const std::string& msg) {
     const Level l = level == LogLevel::kError  ? Level::kError
                     : level == LogLevel::kWarn ? Level::kWarn

@@ -13,7 +13,8 @@ namespace {
 // tool writes whichever it has).
 void ReadTransform(const YAML::Node& n, const std::string& key, Eigen::Isometry3d* out,
                    std::vector<std::string>* warnings) {
-  if (!n.IsMap()) throw ConfigError("key '" + key + "': expected a map, got " + ConfigTable::Show(n));
+  if (!n.IsMap())
+    throw ConfigError("key '" + key + "': expected a map, got " + ConfigTable::Show(n));
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   int rotations = 0;
   for (const auto& kv : n) {
@@ -56,7 +57,8 @@ std::string ShowTransform(const Eigen::Isometry3d& T) {
   std::ostringstream os;
   os.precision(17);
   os << "translation " << T.translation().transpose() << " rotation "
-     << Eigen::Map<const Eigen::Matrix<double, 1, 9>>(Eigen::Matrix3d(T.linear().transpose()).data());
+     << Eigen::Map<const Eigen::Matrix<double, 1, 9>>(
+            Eigen::Matrix3d(T.linear().transpose()).data());
   return os.str();
 }
 
@@ -204,8 +206,8 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(c->max_range > c->min_range), "preprocess.max_range", &c->max_range, c->min_range + 100.0);
   fix(c->point_stride < 1, "preprocess.point_stride", &c->point_stride, 1);
   fix(!(c->scan_voxel_size >= 0.0), "preprocess.scan_voxel_size", &c->scan_voxel_size, 0.5);
-  fix(c->scan_voxel_size > 0.0 && c->scan_voxel_size < 0.01, "preprocess.scan_voxel_size", &c->scan_voxel_size,
-      0.01);
+  fix(c->scan_voxel_size > 0.0 && c->scan_voxel_size < 0.01, "preprocess.scan_voxel_size",
+      &c->scan_voxel_size, 0.01);
   fix(!(c->map.resolution >= 0.05), "map.resolution", &c->map.resolution, 0.05);
   fix(c->map.max_voxels < 1000, "map.max_voxels", &c->map.max_voxels, size_t{1000});
   fix(c->map.max_points_per_voxel < 1, "map.max_points_per_voxel", &c->map.max_points_per_voxel,

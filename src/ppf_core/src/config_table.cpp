@@ -69,8 +69,7 @@ long long ConfigTable::AsInt(const YAML::Node& n, const std::string& key) {
   }
 }
 
-std::vector<double> ConfigTable::AsList(const YAML::Node& n, const std::string& key,
-                                        size_t size) {
+std::vector<double> ConfigTable::AsList(const YAML::Node& n, const std::string& key, size_t size) {
   if (!n.IsSequence() || n.size() != size) {
     throw ConfigError("key '" + key + "': expected a list of " + std::to_string(size) +
                       " numbers, got " + Show(n));
@@ -94,7 +93,8 @@ void ConfigTable::Add(const std::string& key, int* field) {
       key,
       [field](const YAML::Node& n, const std::string& k, std::vector<std::string>*) {
         const long long v = AsInt(n, k);
-        if (v < -1000000000LL || v > 1000000000LL) throw ConfigError("key '" + k + "': out of range");
+        if (v < -1000000000LL || v > 1000000000LL)
+          throw ConfigError("key '" + k + "': out of range");
         *field = static_cast<int>(v);
       },
       [field] { return std::to_string(*field); });
@@ -184,10 +184,10 @@ void ConfigTable::CheckKeys(const YAML::Node& map, const std::string& prefix,
     // YAML allows a list or a map as a key ("? [a]: 1", a stray "? " typed before a key); ours are
     // all names, and reading such a key as one would throw inside yaml-cpp.
     if (!kv.first.IsScalar()) {
-      throw ConfigError("config key " +
-                        (prefix.empty() ? std::string("at the top level")
-                                        : "in section '" + prefix + "'") +
-                        " is a list or a map; keys must be plain names");
+      throw ConfigError(
+          "config key " +
+          (prefix.empty() ? std::string("at the top level") : "in section '" + prefix + "'") +
+          " is a list or a map; keys must be plain names");
     }
     const std::string path = prefix.empty() ? kv.first.Scalar() : prefix + "." + kv.first.Scalar();
     if (IsKey(path)) continue;

@@ -176,7 +176,6 @@ TEST(ConfigYaml, PresetsLoadWithoutWarnings) {
   EXPECT_EQ(k.init.acc_scale, 1.0);
 }
 
-
 // --- the reference file: config/reference.yaml lists every key with the struct's default ---------
 
 std::string ReadText(const std::string& path) {

@@ -60,8 +60,8 @@ class ConfigTable {
   // on a throw (the loaders bind the table to a copy).
   void Apply(const YAML::Node& root, std::vector<std::string>* warnings) const;
 
-  std::vector<std::string> Keys() const;          // in table order
-  std::vector<std::string> TopSections() const;   // first components of the keys, in order
+  std::vector<std::string> Keys() const;                // in table order
+  std::vector<std::string> TopSections() const;         // first components of the keys, in order
   std::string ShowValue(const std::string& key) const;  // "" for unknown keys and for selectors
 
   // Helpers for custom setters: the value as a number / list of `size` numbers / scalar text, or

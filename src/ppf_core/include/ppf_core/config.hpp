@@ -49,8 +49,8 @@ struct Config {
   double map_radius = 150.0;     // voxels farther than this from the sensor are dropped; 0 = off
 
   // --- IMU -------------------------------------------------------------------------------------
-  ImuInitOptions init;  // static initialization (imu_init.hpp)
-  ImuNoise noise;       // continuous-time noise densities (imu_propagation.hpp)
+  ImuInitOptions init;         // static initialization (imu_init.hpp)
+  ImuNoise noise;              // continuous-time noise densities (imu_propagation.hpp)
   double max_imu_gap_s = 0.5;  // longer gaps between IMU samples are bridged or reset the filter
   // Gaps up to this long are bridged: state and map are kept, the IMU is integrated across the
   // gap from the samples on either side (as if it had been constant), and the uncertainty is
@@ -74,7 +74,6 @@ struct Config {
   int num_threads = 0;  // OpenMP threads for de-skew and kNN residuals (0 = OpenMP default)
   LogCallback log;      // receives all messages; nullptr = silent
 };
-
 
 // Clamps nonsensical values to safe ones; returns one note per fix (empty if valid). Never throws.
 std::vector<std::string> ValidateConfig(Config* config);

@@ -3,7 +3,7 @@
 #include <cstdint>
 #include <string>
 
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   ppf::Config config;

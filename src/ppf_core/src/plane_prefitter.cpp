@@ -27,9 +27,8 @@ const char* PrefitStopName(PrefitStop stop) {
   return "unknown";
 }
 
-PlanePrefitter::PlanePrefitter(const PpfConfig& config) : config_(config) {
-  ValidatePpfConfig(&config_);
-}
+// `config` was validated once, by the facade (ValidateConfig in config.cpp).
+PlanePrefitter::PlanePrefitter(const PpfConfig& config) : config_(config) {}
 
 void PlanePrefitter::Accept(const Plane& plane, bool from_guess, int64_t track_id,
                             int ipca_iterations, PrefitResult* result) {

@@ -1,13 +1,7 @@
 #include "ppf_core/ppf_config.hpp"
 
 #include <cmath>
-#include <functional>
-#include <map>
 #include <sstream>
-#include <stdexcept>
-#include <utility>
-
-#include <yaml-cpp/yaml.h>
 
 namespace ppf {
 
@@ -98,121 +92,6 @@ std::vector<std::string> ValidatePpfConfig(PpfConfig* c) {
       "patch_radius", &notes);
   Fix(c->num_threads < 0, &c->num_threads, d.num_threads, "num_threads", &notes);
   return notes;
-}
-
-namespace {
-
-struct YamlTypeError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-template <typename T>
-T Scalar(const YAML::Node& n, const std::string& key, const char* what) {
-  if (!n.IsScalar()) throw YamlTypeError("key 'ppf." + key + "': expected " + what);
-  try {
-    return n.as<T>();
-  } catch (const YAML::Exception&) {
-    throw YamlTypeError("key 'ppf." + key + "': expected " + what + ", got '" + n.Scalar() + "'");
-  }
-}
-
-void ApplyPpfSection(const YAML::Node& section, PpfConfig* c, PpfConfigLoadReport* report) {
-  if (!section || section.IsNull()) return;
-  if (!section.IsMap()) throw YamlTypeError("key 'ppf': expected a map");
-  // `beams` first: it selects the defaults that the other keys then override.
-  if (const YAML::Node beams = section["beams"]; beams && !beams.IsNull()) {
-    *c = PpfConfigForBeams(Scalar<int>(beams, "beams", "an integer"));
-  }
-  using Setter = std::function<void(const YAML::Node&, const std::string&)>;
-  auto num = [](double* f) -> Setter {
-    return
-        [f](const YAML::Node& n, const std::string& k) { *f = Scalar<double>(n, k, "a number"); };
-  };
-  auto integer = [](int* f) -> Setter {
-    return [f](const YAML::Node& n, const std::string& k) { *f = Scalar<int>(n, k, "an integer"); };
-  };
-  auto boolean = [](bool* f) -> Setter {
-    return
-        [f](const YAML::Node& n, const std::string& k) { *f = Scalar<bool>(n, k, "true/false"); };
-  };
-  const std::map<std::string, Setter> table = {
-      {"beams", [](const YAML::Node&, const std::string&) {}},
-      {"delta", num(&c->delta)},
-      {"semi_band_factor", num(&c->semi_band_factor)},
-      {"point_to_plane_thresh", num(&c->point_to_plane_thresh)},
-      {"skeleton_normal_gate_deg", num(&c->skeleton_normal_gate_deg)},
-      {"plane_least_inliers", integer(&c->plane_least_inliers)},
-      {"max_planes_per_scan", integer(&c->max_planes_per_scan)},
-      {"min_remaining_ratio", num(&c->min_remaining_ratio)},
-      {"incremental_fitting", boolean(&c->incremental_fitting)},
-      {"ransac_max_iterations", integer(&c->ransac_max_iterations)},
-      {"ransac_confidence", num(&c->ransac_confidence)},
-      {"ransac_max_degenerate_samples", integer(&c->ransac_max_degenerate_samples)},
-      {"ransac_min_sample_area", num(&c->ransac_min_sample_area)},
-      {"ransac_seed",
-       [c](const YAML::Node& n, const std::string& k) {
-         c->ransac_seed = Scalar<uint64_t>(n, k, "a non-negative integer");
-       }},
-      {"ipca_iterations_new", integer(&c->ipca_iterations_new)},
-      {"ipca_iterations_guess", integer(&c->ipca_iterations_guess)},
-      {"window_size", integer(&c->window_size)},
-      {"window_max_missed_scans", integer(&c->window_max_missed_scans)},
-      {"track_max_angle_deg", num(&c->track_max_angle_deg)},
-      {"track_max_offset", num(&c->track_max_offset)},
-      {"anchor_patches", boolean(&c->anchor_patches)},
-      {"patch_window_fallback", boolean(&c->patch_window_fallback)},
-      {"patch_size", num(&c->patch_size)},
-      {"patch_max_points", integer(&c->patch_max_points)},
-      {"patch_radius", num(&c->patch_radius)},
-      {"num_threads", integer(&c->num_threads)},
-  };
-  for (const auto& kv : section) {
-    const std::string key = kv.first.Scalar();
-    const auto it = table.find(key);
-    if (it == table.end()) {
-      report->warnings.push_back("unknown key 'ppf." + key + "' ignored");
-      continue;
-    }
-    if (kv.second.IsNull()) continue;  // "key:" without a value keeps the default
-    it->second(kv.second, key);
-  }
-}
-
-}  // namespace
-
-PpfConfigLoadReport LoadPpfConfig(const YAML::Node& section, PpfConfig* config) {
-  PpfConfigLoadReport report;
-  PpfConfig work = *config;  // all or nothing
-  try {
-    ApplyPpfSection(section, &work, &report);
-  } catch (const std::exception& e) {  // YamlTypeError and anything yaml-cpp throws
-    report.ok = false;
-    report.error = e.what();
-    report.warnings.clear();
-    return report;
-  }
-  for (std::string& note : ValidatePpfConfig(&work)) report.warnings.push_back(std::move(note));
-  *config = work;
-  return report;
-}
-
-PpfConfigLoadReport LoadPpfConfigYamlString(const std::string& yaml, PpfConfig* config) {
-  try {
-    const YAML::Node root = YAML::Load(yaml);
-    if (!root || root.IsNull()) return LoadPpfConfig(YAML::Node(), config);
-    if (!root.IsMap()) {
-      PpfConfigLoadReport report;
-      report.ok = false;
-      report.error = "top level: expected a map";
-      return report;
-    }
-    return LoadPpfConfig(root["ppf"], config);
-  } catch (const std::exception& e) {
-    PpfConfigLoadReport report;
-    report.ok = false;
-    report.error = std::string("YAML syntax error: ") + e.what();
-    return report;
-  }
 }
 
 }  // namespace ppf

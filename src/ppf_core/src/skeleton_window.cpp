@@ -6,9 +6,8 @@
 
 namespace ppf {
 
-SkeletonWindow::SkeletonWindow(const PpfConfig& config) : config_(config) {
-  ValidatePpfConfig(&config_);
-}
+// `config` was validated once, by the facade (ValidateConfig in config.cpp).
+SkeletonWindow::SkeletonWindow(const PpfConfig& config) : config_(config) {}
 
 void SkeletonWindow::Clear() {
   planes_.clear();  // ids keep increasing: an id is never reused for another plane

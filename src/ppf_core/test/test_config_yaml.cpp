@@ -2,10 +2,14 @@
 // and every preset in config/ loads cleanly.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
+#include <map>
 #include <random>
+#include <sstream>
 
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
+#include "ppf_core/config_table.hpp"
 
 namespace ppf {
 namespace {
@@ -170,6 +174,143 @@ TEST(ConfigYaml, PresetsLoadWithoutWarnings) {
   ASSERT_TRUE(LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/kitti_raw.yaml", &k).ok);
   EXPECT_NEAR(k.T_imu_lidar.translation().x(), 0.81, 0.01);
   EXPECT_EQ(k.init.acc_scale, 1.0);
+}
+
+// --- the reference file: config/reference.yaml lists every key with the struct's default ---------
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  std::ostringstream os;
+  os << in.rdbuf();
+  return os.str();
+}
+
+// Keys of the loader's table that `yaml` lacks, leaves without a value, or sets to something
+// other than the default, as "key: reason" lines (empty = the text is a faithful reference).
+std::vector<std::string> DiffFromDefaults(const std::string& yaml) {
+  std::vector<std::string> diffs;
+  Config loaded, defaults;
+  const ConfigLoadReport r = LoadConfigYamlString(yaml, &loaded);
+  if (!r.ok) return {"load failed: " + r.error};
+  for (const std::string& w : r.warnings) diffs.push_back("warning: " + w);
+  const YAML::Node root = YAML::Load(yaml);
+  const ConfigTable got = CoreConfigTable(&loaded), want = CoreConfigTable(&defaults);
+  for (const std::string& key : want.Keys()) {
+    YAML::Node node = YAML::Clone(root);
+    bool present = true;
+    for (size_t begin = 0; present;) {
+      const size_t dot = key.find('.', begin);
+      const std::string part = key.substr(begin, dot == std::string::npos ? dot : dot - begin);
+      present = node.IsMap() && node[part];
+      if (present) node.reset(node[part]);
+      if (dot == std::string::npos) break;
+      begin = dot + 1;
+    }
+    if (!present) {
+      diffs.push_back(key + ": missing");
+    } else if (!want.ShowValue(key).empty() && node.IsNull()) {
+      diffs.push_back(key + ": no value");  // a null value keeps the default: it proves nothing
+    } else if (got.ShowValue(key) != want.ShowValue(key)) {
+      diffs.push_back(key + ": " + got.ShowValue(key) + " in the file, " + want.ShowValue(key) +
+                      " in the struct");
+    }
+  }
+  return diffs;
+}
+
+TEST(ReferenceFile, HoldsEveryKeyWithTheStructDefault) {
+  const std::string text = ReadText(std::string(PPF_CONFIG_DIR) + "/reference.yaml");
+  ASSERT_FALSE(text.empty()) << "config/reference.yaml not found at " << PPF_CONFIG_DIR;
+  const std::vector<std::string> diffs = DiffFromDefaults(text);
+  std::string all;
+  for (const std::string& d : diffs) all += "\n  " + d;
+  EXPECT_TRUE(diffs.empty()) << "config/reference.yaml and ppf::Config disagree:" << all;
+  Config c;
+  EXPECT_GT(CoreConfigTable(&c).Keys().size(), 70u);  // the whole schema, not an empty table
+}
+
+// The check above must catch the two ways the reference goes stale.
+TEST(ReferenceFile, ACheckThatCatchesAChangedDefaultOrAMissingKey) {
+  const std::string text = ReadText(std::string(PPF_CONFIG_DIR) + "/reference.yaml");
+  ASSERT_FALSE(text.empty());
+  std::string changed = text;
+  const size_t at = changed.find("  k: 5 ");
+  ASSERT_NE(at, std::string::npos);
+  changed.replace(at, 7, "  k: 6 ");  // as if the struct's default had moved to 6
+  EXPECT_EQ(DiffFromDefaults(changed),
+            std::vector<std::string>{"knn.k: 6 in the file, 5 in the struct"});
+  std::string missing = text;
+  const size_t line = missing.find("  min_plane_spread:");
+  ASSERT_NE(line, std::string::npos);
+  missing.erase(line, missing.find('\n', line) + 1 - line);  // a field added without its key
+  EXPECT_EQ(DiffFromDefaults(missing), std::vector<std::string>{"knn.min_plane_spread: missing"});
+}
+
+// "Fully commented": every key of the table carries a comment on its line or on the line above.
+TEST(ReferenceFile, EveryKeyIsCommented) {
+  std::istringstream in(ReadText(std::string(PPF_CONFIG_DIR) + "/reference.yaml"));
+  Config c;
+  const std::vector<std::string> keys = CoreConfigTable(&c).Keys();
+  std::vector<std::pair<size_t, std::string>> path;  // (indent, name) of the enclosing sections
+  std::string line, previous;
+  size_t found = 0;
+  while (std::getline(in, line)) {
+    const size_t indent = line.find_first_not_of(' ');
+    const size_t colon = line.find(':');
+    if (indent != std::string::npos && line[indent] != '#' && line[indent] != '-' &&
+        colon != std::string::npos && line.find_first_of(" [", indent) > colon) {
+      while (!path.empty() && path.back().first >= indent) path.pop_back();
+      path.emplace_back(indent, line.substr(indent, colon - indent));
+      std::string key;
+      for (const auto& [i, name] : path) key += (key.empty() ? "" : ".") + name;
+      if (std::find(keys.begin(), keys.end(), key) != keys.end()) {
+        ++found;
+        const size_t prev = previous.find_first_not_of(' ');
+        EXPECT_TRUE(line.find('#') != std::string::npos ||
+                    (prev != std::string::npos && previous[prev] == '#'))
+            << key << " has no comment in config/reference.yaml";
+      }
+    }
+    if (indent != std::string::npos) previous = line;
+  }
+  EXPECT_EQ(found, keys.size());
+}
+
+// The presets are deltas over the reference: loaded, they differ from the defaults in exactly
+// these values (the values the full 94-line presets had before they became deltas).
+TEST(ReferenceFile, PresetsDifferOnlyInTheirSensorKeys) {
+  const std::map<std::string, std::vector<std::string>> expected = {
+      {"vlp16", {"preprocess.max_range: 100", "map.resolution: 1"}},
+      {"hdl32",
+       {"preprocess.max_range: 100", "ppf.plane_least_inliers: 150",
+        "ppf.incremental_fitting: true"}},
+      {"hdl64",
+       {"preprocess.max_range: 120", "ppf.plane_least_inliers: 400",
+        "ppf.incremental_fitting: true"}},
+      {"os1_64",
+       {"preprocess.max_range: 120", "ppf.plane_least_inliers: 400",
+        "ppf.incremental_fitting: true"}},
+      {"os1_128",
+       {"preprocess.max_range: 120", "ppf.plane_least_inliers: 600",
+        "ppf.incremental_fitting: true"}},
+      {"kitti_raw",
+       {"extrinsic.T_imu_lidar", "preprocess.max_range: 120", "time.stamp: start",
+        "imu.acc_scale: 1", "ppf.plane_least_inliers: 400", "ppf.incremental_fitting: true"}},
+  };
+  for (const auto& [name, want] : expected) {
+    Config preset, defaults;
+    const ConfigLoadReport r =
+        LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/" + name + ".yaml", &preset);
+    ASSERT_TRUE(r.ok) << name << ": " << r.error;
+    const ConfigTable got = CoreConfigTable(&preset), def = CoreConfigTable(&defaults);
+    std::vector<std::string> diffs;
+    for (const std::string& key : def.Keys()) {
+      if (got.ShowValue(key) == def.ShowValue(key)) continue;
+      // The extrinsic's printout is long; that it differs is what matters here.
+      diffs.push_back(key == "extrinsic.T_imu_lidar" ? key : key + ": " + got.ShowValue(key));
+    }
+    EXPECT_EQ(diffs, want) << name;
+  }
 }
 
 }  // namespace

@@ -3,10 +3,21 @@
 
 #include <gtest/gtest.h>
 
+#include "ppf_core/config.hpp"
 #include "ppf_core/ppf_config.hpp"
 
 namespace ppf {
 namespace {
+
+// The `ppf:` section is read by the core's one loader (config.hpp), like every other section;
+// these tests look at what it leaves in Config::ppf.
+ConfigLoadReport LoadPpfConfigYamlString(const std::string& yaml, PpfConfig* ppf) {
+  Config c;
+  c.ppf = *ppf;
+  const ConfigLoadReport r = LoadConfigYamlString(yaml, &c);
+  *ppf = c.ppf;  // unchanged when the load failed (all or nothing)
+  return r;
+}
 
 TEST(PpfConfig, DefaultsScaleWithBeamCount) {
   EXPECT_EQ(PpfConfigForBeams(16).plane_least_inliers, 80);

@@ -10,7 +10,7 @@
 #include <random>
 #include <set>
 
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
 #include "ppf_core/evaluation.hpp"
 #include "ppf_core/lio_ppf.hpp"
 #include "synthetic.hpp"

@@ -8,7 +8,7 @@
 #include <utility>
 
 #include "ppf_bridge/convert.hpp"
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
 
 namespace ppf::dds {
 
@@ -54,7 +54,6 @@ std::unique_ptr<LioPpf> CoreExecutor::CreateCore(const NodeConfig& c, std::strin
   if (c.core_mode == "knn") core_config.mode = Mode::kKnn;
   if (c.core_mode == "ppf") core_config.mode = Mode::kPpf;
   core_config.output_deskewed_points = c.publish_registered_points;
-  for (const auto& note : ValidateConfig(&core_config)) Log(Level::kWarn, "core config: " + note);
   core_config.log = [](LogLevel level, const std::string& msg) {
     const Level l = level == LogLevel::kError  ? Level::kError
                     : level == LogLevel::kWarn ? Level::kWarn

@@ -4,11 +4,13 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include <fastdds/rtps/common/SerializedPayload.h>
 
 #include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/cdr_payload.hpp"
+#include "ppf_core/config_table.hpp"
 #include "ppf_dds_node/gap_counter.hpp"
 #include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/logging.hpp"
@@ -169,6 +171,38 @@ TEST(NodeConfig, CalibrationFileIsLayeredAndResolvedNextToTheConfig) {
   EXPECT_TRUE(r.warnings.empty());
   EXPECT_EQ(c.core_config_file, dir + "/core.yaml");
   EXPECT_EQ(c.core_calibration_file, dir + "/robot/calibration.yaml");
+}
+
+// config/node.yaml is the node's reference file: every key of the loader's table, each with the
+// NodeConfig default, except the transport it exists to select (the struct leaves that to Fast
+// DDS: a relative profile file needs a config file to be relative to). Fails when a default
+// changes without the file, or a key is added to the table without documenting it there.
+TEST(NodeConfig, ReferenceFileHoldsEveryKeyWithTheDefault) {
+  std::ifstream in(std::string(PPF_CONFIG_DIR) + "/node.yaml");
+  ASSERT_TRUE(in) << "config/node.yaml not found at " << PPF_CONFIG_DIR;
+  std::stringstream text;
+  text << in.rdbuf();
+  NodeConfig loaded, defaults;
+  const auto r = LoadNodeConfigString(text.str(), &loaded);  // paths as written, not resolved
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_TRUE(r.warnings.empty()) << r.warnings.front();
+  const YAML::Node root = YAML::Load(text.str());
+  const ConfigTable got = NodeConfigTable(&loaded), want = NodeConfigTable(&defaults);
+  std::vector<std::string> diffs;
+  for (const std::string& key : want.Keys()) {
+    const size_t dot = key.find('.');  // node keys are all section.name
+    const YAML::Node section = root[key.substr(0, dot)];
+    if (!section || !section.IsMap() || !section[key.substr(dot + 1)] ||
+        section[key.substr(dot + 1)].IsNull()) {
+      diffs.push_back(key + ": missing");
+    } else if (got.ShowValue(key) != want.ShowValue(key)) {
+      diffs.push_back(key + ": " + got.ShowValue(key) + " in the file, " + want.ShowValue(key) +
+                      " in the struct");
+    }
+  }
+  EXPECT_EQ(diffs, (std::vector<std::string>{
+                       "dds.profiles_file: 'dds/shm_udp.xml' in the file, '' in the struct",
+                       "dds.profile_name: 'ppf_shm_udp' in the file, '' in the struct"}));
 }
 
 TEST(TimeOrderedQueue, KeepsTimeOrderAndEvictsOldestWhenFull) {

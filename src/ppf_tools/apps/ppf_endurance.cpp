@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
 #include "ppf_sim/lidar_model.hpp"
 #include "ppf_sim/world.hpp"
 #include "ppf_tools/endurance.hpp"

@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "ppf_bag/bag.hpp"
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
 #include "ppf_core/evaluation.hpp"
 #include "ppf_core/lio_ppf.hpp"
 #include "ppf_tools/offline_runner.hpp"

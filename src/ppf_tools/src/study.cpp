@@ -10,7 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
 #include "ppf_sim/lidar_model.hpp"
 #include "ppf_sim/world.hpp"
 #include "ppf_tools/offline_runner.hpp"

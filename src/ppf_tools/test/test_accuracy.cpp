@@ -10,7 +10,7 @@
 #include <sstream>
 #include <string>
 
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
 #include "ppf_core/evaluation.hpp"
 #include "ppf_tools/offline_runner.hpp"
 #include "ppf_tools/scan_stats.hpp"

@@ -9,7 +9,7 @@
 #include <iostream>
 #include <string>
 
-#include "ppf_core/config_yaml.hpp"
+#include "ppf_core/config.hpp"
 #include "ppf_tools/endurance.hpp"
 
 #ifndef PPF_CONFIG_DIR

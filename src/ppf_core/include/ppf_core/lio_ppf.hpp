@@ -3,6 +3,7 @@
 //
 // Usage:
 //   ppf::Config config;                  // or ppf::LoadConfigYaml("config/hdl64.yaml", ...)
+//                                        // (config.hpp; every key in config/reference.yaml)
 //   ppf::LioPpf lio(config);
 //   lio.AddImu(imu);                     // any order relative to scans, each stream in time order
 //   lio.AddScan(cloud);                  // decoded at once: the view may be released afterwards
@@ -50,6 +51,7 @@
 #include <Eigen/Geometry>
 
 #include "ppf_core/cloud_view.hpp"
+#include "ppf_core/config.hpp"
 #include "ppf_core/iekf.hpp"
 #include "ppf_core/imu_init.hpp"
 #include "ppf_core/imu_propagation.hpp"
@@ -64,8 +66,6 @@
 
 namespace ppf {
 
-enum class Mode { kKnn, kPpf };
-
 enum class Status {
   kOk,            // pose estimated from this scan
   kInitializing,  // IMU initialization not finished (reason says why); no pose yet
@@ -74,58 +74,6 @@ enum class Status {
   kRejected,      // malformed cloud (reason says what); nothing changed
 };
 const char* StatusName(Status status);
-
-// Every field is optional in YAML (config_yaml.hpp) and documented with its default here.
-struct Config {
-  Mode mode = Mode::kKnn;
-
-  // LiDAR -> IMU extrinsic: p_imu = T_imu_lidar * p_lidar.
-  Eigen::Isometry3d T_imu_lidar = Eigen::Isometry3d::Identity();
-
-  // --- preprocess ------------------------------------------------------------------------------
-  double min_range = 0.5;    // metres; closer points (the vehicle itself) are dropped
-  double max_range = 150.0;  // metres
-  int point_stride = 1;      // keep every n-th point (1 = all)
-  TimeFieldOptions time;     // per-point time conventions (time_field.hpp)
-
-  // --- downsample and map ------------------------------------------------------------------------
-  double scan_voxel_size = 0.5;  // metres, voxel grid applied to the de-skewed scan
-  VoxelMapOptions map;           // kNN map (voxel_map.hpp): 0.5 m voxels, LRU bound
-  double map_radius = 150.0;     // voxels farther than this from the sensor are dropped; 0 = off
-
-  // --- IMU -------------------------------------------------------------------------------------
-  ImuInitOptions init;  // static initialization (imu_init.hpp)
-  ImuNoise noise;       // continuous-time noise densities (imu_propagation.hpp)
-  double max_imu_gap_s = 0.5;  // longer gaps between IMU samples are bridged or reset the filter
-  // Gaps up to this long are bridged: state and map are kept, the IMU is integrated across the
-  // gap from the samples on either side (as if it had been constant), and the uncertainty is
-  // widened by gap_acc_std / gap_gyro_std for the unmeasured motion, so the next scan
-  // re-registers against the map (ScanResult::imu_gap_s says so). Extrapolation errors grow with
-  // the square of the gap, and registration (0.5 m residual gates) only recovers small ones:
-  // measured on the urban HDL-64 replay at 5-7 m/s with the link cut, 2.0 s gaps (3 runs) ended
-  // 4-8 cm off after the gap, 2.4 s gaps 6 cm and 0.64 m (height), 2.9 s gaps 2.5-3.1 m. Longer
-  // gaps reset. 0 = always reset.
-  double max_imu_gap_bridge_s = 2.5;
-  double gap_acc_std = 1.0;    // m/s^2, unmeasured acceleration assumed during a bridged gap
-  double gap_gyro_std = 0.05;  // rad/s, unmeasured turn rate assumed during a bridged gap
-
-  // --- registration ----------------------------------------------------------------------------
-  IekfOptions iekf;  // max 4 iterations, degeneracy thresholds (iekf.hpp)
-  KnnOptions knn;    // 5 neighbours, planes valid within 0.1 m (knn_residual.hpp)
-  // Plane pre-fitting and skeleton tracking (Mode::kPpf), YAML section `ppf:`; every field and
-  // default is documented in ppf_config.hpp (PpfConfigForBeams() for 16/32/64/128 beams).
-  PpfConfig ppf;
-
-  int num_threads = 0;  // OpenMP threads for de-skew and kNN residuals (0 = OpenMP default)
-
-  // Fill ScanResult::deskewed_points_lidar (the node's registered_points output). Set by the
-  // caller that publishes them, not read from YAML.
-  bool output_deskewed_points = false;
-  LogCallback log;      // receives all messages; nullptr = silent
-};
-
-// Clamps nonsensical values to safe ones; returns one note per fix (empty if valid).
-std::vector<std::string> ValidateConfig(Config* config);
 
 // Milliseconds. preprocess = decoding the cloud (layout, per-point time); downsample = stride and
 // range filter + voxel grid on the raw points; deskew = IMU propagation + de-skew of the

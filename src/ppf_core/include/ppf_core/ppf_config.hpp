@@ -1,47 +1,16 @@
-// Parameters of plane pre-fitting (PPF) and skeleton tracking.
+// Parameters of plane pre-fitting (PPF) and skeleton tracking: Config::ppf, YAML section `ppf:`
+// (keys = field names; all listed with their defaults in config/reference.yaml, read by the core's
+// one loader, config.hpp).
 //
 // Every field has a default that works for a 16/32-beam sensor; PpfConfigForBeams() scales the
-// density-dependent ones. The reference implementation crashed when a YAML key was missing; here
-// every key of the `ppf:` section is optional (LoadPpfConfig), and ValidatePpfConfig() clamps
-// nonsensical values instead of failing later.
-//
-// YAML (`ppf:` section of the LIO config; all keys optional, names = field names below):
-//   ppf:
-//     beams: 64                  # first selects PpfConfigForBeams(64), other keys override it
-//     delta: 0.2
-//     semi_band_factor: 2.0
-//     point_to_plane_thresh: 0.2
-//     skeleton_normal_gate_deg: 10.0
-//     anchor_patches: true
-//     patch_window_fallback: false
-//     patch_size: 2.0
-//     patch_max_points: 50
-//     patch_radius: 150.0
-//     plane_least_inliers: 400
-//     max_planes_per_scan: 10
-//     min_remaining_ratio: 0.1
-//     incremental_fitting: true
-//     ransac_max_iterations: 300
-//     ransac_confidence: 0.99
-//     ransac_max_degenerate_samples: 300
-//     ransac_min_sample_area: 0.0001
-//     ransac_seed: 12345
-//     ipca_iterations_new: 3
-//     ipca_iterations_guess: 5
-//     window_size: 5
-//     window_max_missed_scans: 2
-//     track_max_angle_deg: 5.0
-//     track_max_offset: 0.2
-//     num_threads: 0
+// density-dependent ones (the key `ppf.beams` selects it). The reference implementation crashed
+// when a YAML key was missing; here every key is optional, and ValidatePpfConfig() (part of
+// ValidateConfig) clamps nonsensical values instead of failing later.
 #pragma once
 
 #include <cstdint>
 #include <string>
 #include <vector>
-
-namespace YAML {
-class Node;  // yaml-cpp stays out of public headers' include graph
-}
 
 namespace ppf {
 
@@ -152,18 +121,5 @@ PpfConfig PpfConfigForBeams(int beams);
 // Clamps out-of-range values to safe ones and returns a human-readable note per fix (empty if the
 // config was already valid). Never throws.
 std::vector<std::string> ValidatePpfConfig(PpfConfig* config);
-
-struct PpfConfigLoadReport {
-  bool ok = true;
-  std::string error;                  // first hard error (wrong type); *config left unchanged
-  std::vector<std::string> warnings;  // unknown keys, repaired values
-};
-
-// Reads the `ppf:` section (a map, or null for all defaults) into *config, starting from what
-// *config holds. Unknown keys are warned about; a key of the wrong type fails the load and leaves
-// *config unchanged. Values are validated (ValidatePpfConfig). Never throws.
-PpfConfigLoadReport LoadPpfConfig(const YAML::Node& section, PpfConfig* config);
-// The same, from the text of a whole config file (its `ppf:` section; absent = defaults).
-PpfConfigLoadReport LoadPpfConfigYamlString(const std::string& yaml, PpfConfig* config);
 
 }  // namespace ppf

@@ -1,22 +1,19 @@
 // ppf_node configuration. Every YAML key is optional; the defaults below are what runs without a
-// file. Layout (see config/node.yaml for the commented version):
-//   dds:     { domain_id, profiles_file, profile_name, participant_name }
-//   topics:  { points, imu, odometry, skeleton_planes, tf, path, registered_points }
-//   frames:  { odom_frame, base_frame }
-//   qos:     { sensor_reliability: best_effort|reliable, sensor_depth }
-//   outputs: { tf, path, path_max_poses, skeleton_planes, registered_points }
-//   queues:  { scan_capacity, imu_capacity }
-//   core:    { config_file, calibration_file, mode, omp_wait_policy }
-//                                     ppf_core YAML (config/hdl64.yaml, ...), empty = defaults;
-//                                     mode knn|ppf overrides the file's mode
-//   trajectory: { tum_file }          written on shutdown (TUM: t x y z qx qy qz qw), empty = off
-//   diagnostics: { period_s, malformed_log_interval_s }
+// file. The keys, their defaults and what each does: config/node.yaml, the node's reference file
+// (test_node_units checks that it lists every key of the loader's table with the default here).
+// Read by the core's one table-driven loader (ppf_core/config_table.hpp), so a node config fails
+// and warns exactly like a core config.
 #pragma once
 
 #include <string>
 #include <vector>
 
+#include "ppf_core/config.hpp"
 #include "ppf_dds_node/dds_common.hpp"
+
+namespace ppf {
+class ConfigTable;  // ppf_core/config_table.hpp (yaml-cpp stays out of this header)
+}
 
 namespace ppf::dds {
 
@@ -70,13 +67,19 @@ struct NodeConfig {
   double malformed_log_interval_s = 1.0;
 };
 
-struct NodeConfigReport {
-  bool ok = true;
-  std::string error;
-  std::vector<std::string> warnings;  // unknown keys, clamped values
-};
+// The one report type of every config loader: the first error (naming the key) or the warnings.
+using NodeConfigReport = ConfigLoadReport;
 
+// The node's schema bound to *config: every key the loader reads (tests compare config/node.yaml
+// with the defaults through it).
+ConfigTable NodeConfigTable(NodeConfig* config);
+
+// Parses YAML into *config (starting from what it holds), then clamps nonsense with a warning.
+// All or nothing: a failed load leaves *config unchanged. A file in which no top-level key is a
+// node section (typically a core preset) is refused. Never throws.
 NodeConfigReport LoadNodeConfigString(const std::string& yaml, NodeConfig* config);
+// As above, from a file; relative file names in it (dds.profiles_file, core.config_file,
+// core.calibration_file) are made relative to the file's directory.
 NodeConfigReport LoadNodeConfig(const std::string& path, NodeConfig* config);
 
 }  // namespace ppf::dds

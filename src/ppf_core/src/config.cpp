@@ -1,0 +1,281 @@
+#include "ppf_core/config.hpp"
+
+#include <cstdio>
+#include <sstream>
+
+#include "ppf_core/config_table.hpp"
+#include "ppf_core/so3.hpp"
+
+namespace ppf {
+namespace {
+
+// extrinsic.T_imu_lidar: a translation and at most one of three rotation forms (a calibration
+// tool writes whichever it has).
+void ReadTransform(const YAML::Node& n, const std::string& key, Eigen::Isometry3d* out,
+                   std::vector<std::string>* warnings) {
+  if (!n.IsMap())
+    throw ConfigError("key '" + key + "': expected a map, got " + ConfigTable::Show(n));
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  int rotations = 0;
+  for (const auto& kv : n) {
+    const std::string k = kv.first.IsScalar() ? kv.first.Scalar() : std::string("?");
+    const std::string path = key + "." + k;
+    if (k == "translation") {
+      const auto v = ConfigTable::AsList(kv.second, path, 3);
+      T.translation() = Eigen::Vector3d(v[0], v[1], v[2]);
+    } else if (k == "rotation") {
+      const auto v = ConfigTable::AsList(kv.second, path, 9);
+      Eigen::Matrix3d R;
+      R << v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8];
+      T.linear() = R;  // ValidateConfig re-orthonormalizes rounded matrices
+      ++rotations;
+    } else if (k == "quaternion_wxyz") {
+      const auto v = ConfigTable::AsList(kv.second, path, 4);
+      const Eigen::Quaterniond q(v[0], v[1], v[2], v[3]);
+      if (q.norm() < 1e-9) throw ConfigError("key '" + path + "': zero quaternion");
+      T.linear() = q.normalized().toRotationMatrix();
+      ++rotations;
+    } else if (k == "rpy_deg") {
+      const auto v = ConfigTable::AsList(kv.second, path, 3);
+      const double d2r = 3.14159265358979323846 / 180.0;
+      T.linear() = (Eigen::AngleAxisd(v[2] * d2r, Eigen::Vector3d::UnitZ()) *
+                    Eigen::AngleAxisd(v[1] * d2r, Eigen::Vector3d::UnitY()) *
+                    Eigen::AngleAxisd(v[0] * d2r, Eigen::Vector3d::UnitX()))
+                       .toRotationMatrix();
+      ++rotations;
+    } else {
+      warnings->push_back("unknown key '" + path + "' ignored");
+    }
+  }
+  if (rotations > 1) {
+    throw ConfigError("key '" + key + "': give only one of rotation, quaternion_wxyz, rpy_deg");
+  }
+  *out = T;
+}
+
+std::string ShowTransform(const Eigen::Isometry3d& T) {
+  std::ostringstream os;
+  os.precision(17);
+  os << "translation " << T.translation().transpose() << " rotation "
+     << Eigen::Map<const Eigen::Matrix<double, 1, 9>>(
+            Eigen::Matrix3d(T.linear().transpose()).data());
+  return os.str();
+}
+
+}  // namespace
+
+// The schema: every key a config file may hold, bound to its field of *c. The reference file
+// config/reference.yaml lists the same keys in the same order with the struct's defaults.
+ConfigTable CoreConfigTable(Config* c) {
+  ConfigTable t;
+  t.AddEnum("mode", &c->mode, {{"knn", Mode::kKnn}, {"ppf", Mode::kPpf}});
+  t.AddCustom(
+      "extrinsic.T_imu_lidar",
+      [c](const YAML::Node& n, const std::string& k, std::vector<std::string>* w) {
+        ReadTransform(n, k, &c->T_imu_lidar, w);
+      },
+      [c] { return ShowTransform(c->T_imu_lidar); });
+  t.AddHint("extrinsic", "transforms are named T_<to>_<from>");
+
+  t.Add("preprocess.min_range", &c->min_range);
+  t.Add("preprocess.max_range", &c->max_range);
+  t.Add("preprocess.point_stride", &c->point_stride);
+  t.Add("preprocess.scan_voxel_size", &c->scan_voxel_size);
+
+  t.Add("time.field", &c->time.field_name);
+  t.Add("time.unit_scale", &c->time.unit_scale_s);
+  t.AddEnum("time.reference", &c->time.reference,
+            {{"auto", TimeReference::kAuto},
+             {"relative", TimeReference::kRelative},
+             {"absolute", TimeReference::kAbsolute}});
+  t.AddEnum("time.stamp", &c->time.stamp_position,
+            {{"auto", StampPosition::kAuto},
+             {"start", StampPosition::kStart},
+             {"end", StampPosition::kEnd}});
+  t.AddEnum("time.no_time_policy", &c->time.no_time_policy,
+            {{"azimuth", NoTimePolicy::kAzimuth}, {"no_deskew", NoTimePolicy::kNoDeskew}});
+  t.Add("time.scan_period", &c->time.scan_period_s);
+  t.Add("time.azimuth_clockwise", &c->time.azimuth_clockwise);
+
+  t.Add("map.resolution", &c->map.resolution);
+  t.AddCustom(
+      "map.nearby",
+      [c](const YAML::Node& n, const std::string& k, std::vector<std::string>*) {
+        const long long v = ConfigTable::AsInt(n, k);
+        if (v != 1 && v != 7 && v != 19 && v != 27) {
+          throw ConfigError("key '" + k + "': must be 1, 7, 19 or 27");
+        }
+        c->map.nearby = static_cast<NearbyType>(v);  // the enum's values are the voxel counts
+      },
+      [c] { return std::to_string(static_cast<int>(c->map.nearby)); });
+  t.Add("map.max_voxels", &c->map.max_voxels);
+  t.Add("map.max_points_per_voxel", &c->map.max_points_per_voxel);
+  t.Add("map.min_point_distance", &c->map.min_point_distance);
+  t.Add("map.radius", &c->map_radius);
+
+  t.Add("imu.init_duration", &c->init.duration_s);
+  t.Add("imu.init_min_samples", &c->init.min_samples);
+  t.Add("imu.init_max_acc_std", &c->init.max_acc_std);
+  t.Add("imu.init_max_gyro_std", &c->init.max_gyro_std);
+  t.Add("imu.init_max_gyro_bias", &c->init.max_gyro_bias);
+  t.Add("imu.init_max_gravity_error", &c->init.max_gravity_error);
+  t.Add("imu.acc_scale", &c->init.acc_scale);
+  t.Add("imu.gravity", &c->init.gravity);
+  t.Add("imu.gyro_noise", &c->noise.gyro);
+  t.Add("imu.acc_noise", &c->noise.acc);
+  t.Add("imu.gyro_bias_noise", &c->noise.gyro_bias);
+  t.Add("imu.acc_bias_noise", &c->noise.acc_bias);
+  t.Add("imu.gravity_dir_noise", &c->noise.gravity_dir);
+  t.Add("imu.max_gap", &c->max_imu_gap_s);
+  t.Add("imu.max_gap_bridge", &c->max_imu_gap_bridge_s);
+  t.Add("imu.gap_acc_std", &c->gap_acc_std);
+  t.Add("imu.gap_gyro_std", &c->gap_gyro_std);
+
+  t.Add("iekf.max_iterations", &c->iekf.max_iterations);
+  t.Add("iekf.convergence_rot", &c->iekf.convergence_rot_rad);
+  t.Add("iekf.convergence_trans", &c->iekf.convergence_trans_m);
+  t.Add("iekf.laser_point_std", &c->iekf.laser_point_std);
+  t.Add("iekf.laser_angular_std", &c->iekf.laser_angular_std);
+  t.Add("iekf.refined_gate", &c->iekf.refined_gate);
+  t.Add("iekf.refined_gate_after", &c->iekf.refined_gate_after_s);
+  t.Add("iekf.min_rows", &c->iekf.min_rows);
+  t.Add("iekf.residual_max_range", &c->iekf.residual_max_range);
+  t.Add("iekf.degeneracy_min_eig_translation", &c->iekf.degeneracy_min_eig_translation);
+  t.Add("iekf.degeneracy_min_eig_rotation", &c->iekf.degeneracy_min_eig_rotation);
+
+  t.Add("knn.k", &c->knn.k);
+  t.Add("knn.max_neighbor_distance", &c->knn.max_neighbor_distance);
+  t.Add("knn.plane_threshold", &c->knn.plane_threshold);
+  t.Add("knn.min_plane_spread", &c->knn.min_plane_spread);
+  t.Add("knn.max_residual", &c->knn.max_residual);
+
+  t.Add("num_threads", &c->num_threads);
+
+  // First in its section (the table applies keys in this order): it replaces the whole section
+  // with PpfConfigForBeams(n), which the other ppf keys then override.
+  t.AddCustom(
+      "ppf.beams",
+      [c](const YAML::Node& n, const std::string& k, std::vector<std::string>*) {
+        const long long beams = ConfigTable::AsInt(n, k);
+        if (beams < 0 || beams > 100000) throw ConfigError("key '" + k + "': out of range");
+        c->ppf = PpfConfigForBeams(static_cast<int>(beams));
+      },
+      nullptr);
+  PpfConfig* p = &c->ppf;
+  t.Add("ppf.plane_least_inliers", &p->plane_least_inliers);
+  t.Add("ppf.incremental_fitting", &p->incremental_fitting);
+  t.Add("ppf.delta", &p->delta);
+  t.Add("ppf.semi_band_factor", &p->semi_band_factor);
+  t.Add("ppf.point_to_plane_thresh", &p->point_to_plane_thresh);
+  t.Add("ppf.skeleton_normal_gate_deg", &p->skeleton_normal_gate_deg);
+  t.Add("ppf.anchor_patches", &p->anchor_patches);
+  t.Add("ppf.patch_window_fallback", &p->patch_window_fallback);
+  t.Add("ppf.patch_size", &p->patch_size);
+  t.Add("ppf.patch_max_points", &p->patch_max_points);
+  t.Add("ppf.patch_radius", &p->patch_radius);
+  t.Add("ppf.max_planes_per_scan", &p->max_planes_per_scan);
+  t.Add("ppf.min_remaining_ratio", &p->min_remaining_ratio);
+  t.Add("ppf.ransac_max_iterations", &p->ransac_max_iterations);
+  t.Add("ppf.ransac_confidence", &p->ransac_confidence);
+  t.Add("ppf.ransac_max_degenerate_samples", &p->ransac_max_degenerate_samples);
+  t.Add("ppf.ransac_min_sample_area", &p->ransac_min_sample_area);
+  t.Add("ppf.ransac_seed", &p->ransac_seed);
+  t.Add("ppf.ipca_iterations_new", &p->ipca_iterations_new);
+  t.Add("ppf.ipca_iterations_guess", &p->ipca_iterations_guess);
+  t.Add("ppf.window_size", &p->window_size);
+  t.Add("ppf.window_max_missed_scans", &p->window_max_missed_scans);
+  t.Add("ppf.track_max_angle_deg", &p->track_max_angle_deg);
+  t.Add("ppf.track_max_offset", &p->track_max_offset);
+  t.Add("ppf.num_threads", &p->num_threads);
+  return t;
+}
+
+// Each note names the YAML key (config/reference.yaml), so a clamped value can be found in the
+// file that set it.
+std::vector<std::string> ValidateConfig(Config* c) {
+  std::vector<std::string> notes;
+  auto fix = [&notes](bool bad, const std::string& what, auto* field, auto value) {
+    if (bad) {
+      std::ostringstream os;
+      os << what << ": " << *field << " -> " << value;
+      notes.push_back(os.str());
+      *field = value;
+    }
+  };
+  fix(!(c->min_range >= 0.0), "preprocess.min_range", &c->min_range, 0.0);
+  fix(!(c->max_range > c->min_range), "preprocess.max_range", &c->max_range, c->min_range + 100.0);
+  fix(c->point_stride < 1, "preprocess.point_stride", &c->point_stride, 1);
+  fix(!(c->scan_voxel_size >= 0.0), "preprocess.scan_voxel_size", &c->scan_voxel_size, 0.5);
+  fix(c->scan_voxel_size > 0.0 && c->scan_voxel_size < 0.01, "preprocess.scan_voxel_size",
+      &c->scan_voxel_size, 0.01);
+  fix(!(c->map.resolution >= 0.05), "map.resolution", &c->map.resolution, 0.05);
+  fix(c->map.max_voxels < 1000, "map.max_voxels", &c->map.max_voxels, size_t{1000});
+  fix(c->map.max_points_per_voxel < 1, "map.max_points_per_voxel", &c->map.max_points_per_voxel,
+      size_t{1});
+  fix(!(c->map.min_point_distance >= 0.0), "map.min_point_distance", &c->map.min_point_distance,
+      0.0);
+  fix(!(c->map_radius >= 0.0), "map.radius", &c->map_radius, 0.0);
+  fix(!(c->time.scan_period_s > 0.0), "time.scan_period", &c->time.scan_period_s, 0.1);
+  fix(!(c->time.unit_scale_s >= 0.0), "time.unit_scale", &c->time.unit_scale_s, 0.0);
+  fix(!(c->init.duration_s >= 0.0), "imu.init_duration", &c->init.duration_s, 1.0);
+  fix(c->init.min_samples < 2, "imu.init_min_samples", &c->init.min_samples, 2);
+  fix(!(c->max_imu_gap_s > 0.0), "imu.max_gap", &c->max_imu_gap_s, 0.5);
+  fix(!(c->max_imu_gap_bridge_s >= 0.0), "imu.max_gap_bridge", &c->max_imu_gap_bridge_s, 0.0);
+  fix(!(c->gap_acc_std >= 0.0), "imu.gap_acc_std", &c->gap_acc_std, 1.0);
+  fix(!(c->gap_gyro_std >= 0.0), "imu.gap_gyro_std", &c->gap_gyro_std, 0.05);
+  fix(!(c->noise.gyro >= 0.0), "imu.gyro_noise", &c->noise.gyro, 0.01);
+  fix(!(c->noise.acc >= 0.0), "imu.acc_noise", &c->noise.acc, 0.02);
+  fix(!(c->noise.gyro_bias >= 0.0), "imu.gyro_bias_noise", &c->noise.gyro_bias, 1e-4);
+  fix(!(c->noise.acc_bias >= 0.0), "imu.acc_bias_noise", &c->noise.acc_bias, 1e-3);
+  fix(!(c->noise.gravity_dir >= 0.0), "imu.gravity_dir_noise", &c->noise.gravity_dir, 0.0);
+  fix(c->iekf.max_iterations < 1, "iekf.max_iterations", &c->iekf.max_iterations, 1);
+  fix(c->iekf.max_iterations > 30, "iekf.max_iterations", &c->iekf.max_iterations, 30);
+  fix(!(c->iekf.laser_point_std > 0.0), "iekf.laser_point_std", &c->iekf.laser_point_std, 0.03);
+  fix(!(c->iekf.laser_angular_std >= 0.0), "iekf.laser_angular_std", &c->iekf.laser_angular_std,
+      0.005);
+  fix(!(c->iekf.refined_gate >= 0.0), "iekf.refined_gate", &c->iekf.refined_gate, 0.1);
+  fix(!(c->iekf.refined_gate_after_s >= 0.0), "iekf.refined_gate_after",
+      &c->iekf.refined_gate_after_s, 3.0);
+  fix(c->iekf.min_rows < 6, "iekf.min_rows", &c->iekf.min_rows, 6);
+  fix(!(c->iekf.residual_max_range >= 0.0), "iekf.residual_max_range", &c->iekf.residual_max_range,
+      0.0);
+  fix(c->knn.k < 3, "knn.k", &c->knn.k, 3);
+  fix(c->knn.k > 50, "knn.k", &c->knn.k, 50);
+  fix(!(c->knn.plane_threshold > 0.0), "knn.plane_threshold", &c->knn.plane_threshold, 0.1);
+  fix(!(c->knn.max_neighbor_distance > 0.0), "knn.max_neighbor_distance",
+      &c->knn.max_neighbor_distance, 1.0);
+  fix(!(c->knn.max_residual > 0.0), "knn.max_residual", &c->knn.max_residual, 0.5);
+  for (const std::string& note : ValidatePpfConfig(&c->ppf)) notes.push_back(note);  // PPF
+  const Eigen::Matrix3d R = c->T_imu_lidar.linear();
+  if (!c->T_imu_lidar.matrix().allFinite() ||
+      (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-3 || R.determinant() < 0) {
+    notes.push_back("extrinsic.T_imu_lidar rotation is not a rotation: re-orthonormalized");
+    if (c->T_imu_lidar.matrix().allFinite() && R.determinant() > 0) {
+      c->T_imu_lidar.linear() = NormalizeRotation(R);
+    } else {
+      c->T_imu_lidar = Eigen::Isometry3d::Identity();
+      notes.back() = "extrinsic.T_imu_lidar invalid: identity used";
+    }
+  }
+  return notes;
+}
+
+ConfigLoadReport LoadConfigYamlString(const std::string& yaml, Config* config) {
+  Config work = *config;  // all or nothing: a failed load leaves *config untouched
+  ConfigLoadReport report = LoadWithTable(yaml, CoreConfigTable(&work));
+  if (!report.ok) return report;
+  for (const std::string& note : ValidateConfig(&work)) report.warnings.push_back(note);
+  *config = work;
+  return report;
+}
+
+ConfigLoadReport LoadConfigYaml(const std::string& path, Config* config) {
+  ConfigLoadReport report;
+  std::string text;
+  if (!ReadConfigFile(path, &text, &report)) return report;
+  report = LoadConfigYamlString(text, config);
+  if (!report.ok) report.error = path + ": " + report.error;
+  return report;
+}
+
+}  // namespace ppf

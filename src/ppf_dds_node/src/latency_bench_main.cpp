@@ -30,9 +30,9 @@
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
-#include "child_process.hpp"
 #include "nav_msgs/msg/OdometryPubSubTypes.h"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_dds_node/child_process.hpp"
 #include "ppf_dds_node/dds_common.hpp"
 #include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/synthetic_scene.hpp"
@@ -137,7 +137,7 @@ int main(int argc, char** argv) {
         << "\", profile_name: \"" << profile << "\"}\n"
         << "queues: {scan_capacity: 2}\n";
   }
-  ppf::test::ChildProcess node;
+  ppf::dds::ChildProcess node;
   std::vector<std::string> node_env;
   if (!omp_policy.empty()) node_env.push_back("OMP_WAIT_POLICY=" + omp_policy);
   std::vector<std::string> node_argv = {node_exe, "--config", cfg};
@@ -249,7 +249,7 @@ int main(int argc, char** argv) {
   }
   participant->delete_contained_entities();
   fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
-  if (!got || !ppf::test::ExitedWith(status, 0)) {
+  if (!got || !ppf::dds::ExitedWith(status, 0)) {
     std::fprintf(stderr, "ppf_node did not report a summary / exit 0\n");
     return 1;
   }

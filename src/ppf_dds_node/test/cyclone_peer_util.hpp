@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
-#include "child_process.hpp"
 #include "dds_test_util.hpp"
 #include "ppf_bag/bag.hpp"
 #include "ppf_bridge/cdr.hpp"
+#include "ppf_dds_node/child_process.hpp"
 #include "sensor_msgs/msg/Imu.h"
 #include "sensor_msgs/msg/PointCloud2.h"
 
@@ -145,7 +145,7 @@ inline void RunNodeAndPeer(const std::string& peer_exe, const std::string& dir, 
            "<Peers><Peer address=\"127.0.0.1\"/></Peers>"
            "</Discovery></Domain></CycloneDDS>\n";
   }
-  ChildProcess node, peer;
+  ppf::dds::ChildProcess node, peer;
   ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", dir + "/node.yaml"}, {}, dir + "/node.log"));
   std::string line;
   ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
@@ -160,7 +160,7 @@ inline void RunNodeAndPeer(const std::string& peer_exe, const std::string& dir, 
       << "the node did not discover the peer's writers, see " << dir << "/node.log";
   std::ofstream(dir + "/go").put('\n');
   ASSERT_TRUE(peer.WaitForLine("RESULT", &run->result, 90s, &run->peer));
-  EXPECT_TRUE(ExitedWith(peer.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(peer.Wait(10s), 0));
   run->node_hwm_kb = ProcStatusKb(node.pid(), "VmHWM");
   ASSERT_TRUE(StopNodeAndReadSummary(node, &run->summary));
   run->log = ReadTextFile(dir + "/node.log");

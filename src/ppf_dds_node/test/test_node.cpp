@@ -11,21 +11,22 @@
 #include <sstream>
 #include <string>
 
-#include "child_process.hpp"
 #include "dds_test_util.hpp"
 #include "nav_msgs/msg/OdometryPubSubTypes.h"
 #include "nav_msgs/msg/PathPubSubTypes.h"
 #include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_dds_node/child_process.hpp"
 #include "ppf_dds_node/raw_type.hpp"
 #include "ppf_dds_node/synthetic_scene.hpp"
 #include "ppf_msgs/msg/SkeletonPlaneArrayPubSubTypes.h"
 #include "sensor_msgs/msg/ImuPubSubTypes.h"
 #include "sensor_msgs/msg/PointCloud2PubSubTypes.h"
+#include "test_domain.hpp"
 #include "tf2_msgs/msg/TFMessagePubSubTypes.h"
 
 using namespace std::chrono_literals;
-using ppf::test::ChildProcess;
+using ppf::dds::ChildProcess;
 using ppf::test::Collector;
 using ppf::test::kProfile;
 using ppf::test::kProfiles;
@@ -364,8 +365,8 @@ TEST(NodeProcess, BadConfigFailsFastWithExitCode) {
   }
   ChildProcess node;
   ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", cfg}, {}, dir + "/node.log"));
-  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(15s), 2));
+  EXPECT_TRUE(ppf::dds::ExitedWith(node.Wait(15s), 2));
   ChildProcess missing;
   ASSERT_TRUE(missing.Start({PPF_NODE_EXE, "--config", dir + "/nope.yaml"}, {}, dir + "/m.log"));
-  EXPECT_TRUE(ppf::test::ExitedWith(missing.Wait(15s), 2));
+  EXPECT_TRUE(ppf::dds::ExitedWith(missing.Wait(15s), 2));
 }

@@ -12,17 +12,18 @@
 #include <thread>
 #include <vector>
 
-#include "child_process.hpp"
 #include "dds_test_util.hpp"
 #include "ppf_bag/bag.hpp"
 #include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_dds_node/child_process.hpp"
 #include "ppf_dds_node/raw_type.hpp"
 #include "sensor_msgs/msg/Imu.h"
 #include "sensor_msgs/msg/PointCloud2.h"
+#include "test_domain.hpp"
 
 using namespace std::chrono_literals;
-using ppf::test::ChildProcess;
+using ppf::dds::ChildProcess;
 namespace fdds = eprosima::fastdds::dds;
 
 namespace {
@@ -116,11 +117,11 @@ std::string ReplayAndRecord(const std::string& bag, const std::string& out,
   play.insert(play.end(), dds.begin(), dds.end());
   EXPECT_TRUE(replay.Start(play, {}, out + ".replay.log"));
   EXPECT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &line, 40s)) << "see " << out << ".replay.log";
-  EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(replay.Wait(10s), 0));
   // The replay waited for acknowledgements of its reliable writers before reporting DONE.
   record.Signal(SIGINT);
   EXPECT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &line, 20s));
-  EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(record.Wait(10s), 0));
   return out;
 }
 
@@ -223,13 +224,13 @@ TEST(ReplayRecordOptions, LoopUntilInterruptedAndExplicitTypes) {
   std::this_thread::sleep_for(1500ms);  // 0.3 s per pass at 2x: several passes
   replay.Signal(SIGINT);
   ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &line, 20s));
-  EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(replay.Wait(10s), 0));
   const int loops = std::atoi(line.c_str() + line.find("loops=") + 6);
   EXPECT_GE(loops, 2) << line;
   std::string done;
   record.Signal(SIGINT);
   ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &done, 20s));
-  EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(record.Wait(10s), 0));
   std::map<std::string, std::string> types;
   const Topics got = ReadBag(dir + "/out", &types);
   EXPECT_EQ(types["/imu"], "sensor_msgs/msg/Imu");
@@ -344,7 +345,7 @@ TEST(ReplayRecordOptions, RecorderCreatingReadersWhileWritersAppearNeitherHangsN
     std::string done;
     ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &done, 10s))
         << "ppf_record did not stop on SIGINT (deadlocked?), see " << out << ".record.log";
-    EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
+    EXPECT_TRUE(ppf::dds::ExitedWith(record.Wait(10s), 0));
     // Reliable keep-all on both sides, acknowledged: every message of every topic.
     for (const auto& n : names) {
       EXPECT_NE(done.find(" " + n + "=" + std::to_string(kPerTopic)), std::string::npos)
@@ -360,11 +361,11 @@ TEST(ReplayRecordOptions, RecorderCreatingReadersWhileWritersAppearNeitherHangsN
 TEST(ReplayRecordOptions, BadArgumentsAreRejected) {
   ChildProcess p;
   ASSERT_TRUE(p.Start({PPF_REPLAY_EXE, "--bag", "/nonexistent/bag"}));
-  EXPECT_TRUE(ppf::test::ExitedWith(p.Wait(15s), 1));
+  EXPECT_TRUE(ppf::dds::ExitedWith(p.Wait(15s), 1));
   ChildProcess q;
   ASSERT_TRUE(q.Start({PPF_RECORD_EXE, "--topics", "/x"}));  // no --out
-  EXPECT_TRUE(ppf::test::ExitedWith(q.Wait(15s), 2));
+  EXPECT_TRUE(ppf::dds::ExitedWith(q.Wait(15s), 2));
   ChildProcess r;
   ASSERT_TRUE(r.Start({PPF_REPLAY_EXE, "--bag", "/tmp", "--remap", "nonsense"}));
-  EXPECT_TRUE(ppf::test::ExitedWith(r.Wait(15s), 2));
+  EXPECT_TRUE(ppf::dds::ExitedWith(r.Wait(15s), 2));
 }

@@ -36,6 +36,7 @@
 #include "ppf_dds_node/dds_common.hpp"
 #include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/synthetic_scene.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 #include "sensor_msgs/msg/ImuPubSubTypes.h"
 #include "sensor_msgs/msg/PointCloud2PubSubTypes.h"
 
@@ -70,7 +71,7 @@ class OdomListener : public fdds::DataReaderListener {
       if (!info.valid_data) continue;
       const auto now = Clock::now();
       std::lock_guard<std::mutex> lock(mutex);
-      received[ppf::bridge::ToNanoseconds(msg.header().stamp())] = now;
+      received[ppf::msgs::ToNanoseconds(msg.header().stamp())] = now;
     }
   }
   std::mutex mutex;
@@ -222,7 +223,7 @@ int main(int argc, char** argv) {
       imu_w->write(&imu);
       imu_next += imu_dt;
     } else {
-      cloud.header().stamp(ppf::bridge::TimeFromNanoseconds(scan_start));
+      cloud.header().stamp(ppf::msgs::TimeFromNanoseconds(scan_start));
       written[scan_end] = Clock::now();  // before write: with SHM the node may get it first
       cloud_w->write(&cloud);
       scan_start = scan_end;

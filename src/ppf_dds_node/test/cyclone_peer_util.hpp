@@ -11,8 +11,8 @@
 
 #include "dds_test_util.hpp"
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_dds_node/child_process.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
 #include "sensor_msgs/msg/Imu.h"
 #include "sensor_msgs/msg/PointCloud2.h"
 
@@ -55,7 +55,7 @@ inline int WriteDump(const std::string& bag, const std::string& dump, int* imus)
   while (reader.Next(m)) {
     if (m.topic == "/imu") {
       sensor_msgs::msg::Imu imu;
-      if (!ppf::bridge::DecodeCdr(m.data, &imu)) continue;
+      if (!ppf::msgs::DecodeCdr(m.data, &imu)) continue;
       w.Pod(uint8_t{1});
       w.Pod(m.timestamp_ns);
       w.Pod(imu.header().stamp().sec());
@@ -76,7 +76,7 @@ inline int WriteDump(const std::string& bag, const std::string& dump, int* imus)
       ++*imus;
     } else if (m.topic == "/points") {
       sensor_msgs::msg::PointCloud2 c;
-      if (!ppf::bridge::DecodeCdr(m.data, &c)) continue;
+      if (!ppf::msgs::DecodeCdr(m.data, &c)) continue;
       w.Pod(uint8_t{2});
       w.Pod(m.timestamp_ns);
       w.Pod(c.header().stamp().sec());

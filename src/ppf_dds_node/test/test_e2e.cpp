@@ -16,10 +16,12 @@
 #include "dds_test_util.hpp"
 #include "nav_msgs/msg/Odometry.h"
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
-#include "ppf_core/evaluation.hpp"
 #include "ppf_dds_node/child_process.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
+#include "ppf_msgs_cdr/time.hpp"
+#include "ppf_trajectory/evaluation.hpp"
+#include "ppf_trajectory/trajectory_io.hpp"
 #include "test_domain.hpp"
 #include "tool_paths.hpp"
 
@@ -35,25 +37,28 @@ namespace {
 size_t OdometryBagToTum(const std::string& bag, const std::string& tum, std::string* frames) {
   ppf::bag::Reader reader(bag);
   reader.SetTopicFilter({"/odometry"});
-  std::ofstream out(tum);
-  out.precision(9);
-  out << std::fixed;
+  ppf::TumWriter out(tum);
   ppf::bag::Message m;
   size_t n = 0;
   while (reader.Next(m)) {
     nav_msgs::msg::Odometry o;
     std::string error;
-    if (!ppf::bridge::DecodeCdr(m.data, &o, &error)) {
+    if (!ppf::msgs::DecodeCdr(m.data, &o, &error)) {
       ADD_FAILURE() << "recorded odometry does not decode: " << error;
       continue;
     }
     if (frames->empty()) *frames = o.header().frame_id() + "->" + o.child_frame_id();
     const auto& p = o.pose().pose();
-    out << ppf::bridge::ToSeconds(o.header().stamp()) << ' ' << p.position().x() << ' '
-        << p.position().y() << ' ' << p.position().z() << ' ' << p.orientation().x() << ' '
-        << p.orientation().y() << ' ' << p.orientation().z() << ' ' << p.orientation().w() << '\n';
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(p.position().x(), p.position().y(), p.position().z());
+    T.linear() = Eigen::Quaterniond(p.orientation().w(), p.orientation().x(), p.orientation().y(),
+                                    p.orientation().z())
+                     .normalized()
+                     .toRotationMatrix();
+    out.Write(ppf::msgs::ToNanoseconds(o.header().stamp()), T);
     ++n;
   }
+  EXPECT_TRUE(out.Close()) << "cannot write " << tum;
   return n;
 }
 
@@ -222,7 +227,8 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
     EXPECT_NEAR(rmse, in_process.stats.rmse, 1e-3) << "ppf_eval disagrees with ComputeApe";
   } else {
     std::printf(
-        "NOTE: ppf_eval not found; APE from ppf_core::ComputeApe (the code ppf_eval runs)\n");
+        "NOTE: ppf_eval not found; APE from ppf::ComputeApe (ppf_trajectory, the code ppf_eval "
+        "runs)\n");
   }
   const double percent = 100.0 * rmse / path;
   std::printf("APE rmse %.4f m over %zu poses on a %.2f m path = %.3f %% (bound 0.5 %%)\n", rmse,

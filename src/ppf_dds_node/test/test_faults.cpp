@@ -17,9 +17,9 @@
 #include "dds_test_util.hpp"
 #include "nav_msgs/msg/Odometry.h"
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
 #include "ppf_dds_node/child_process.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
 #include "test_domain.hpp"
 #include "tool_paths.hpp"
 
@@ -106,7 +106,7 @@ class Faults : public ::testing::Test {
     while (reader.Next(m)) {
       nav_msgs::msg::Odometry o;
       EXPECT_EQ(m.topic, "/odometry");
-      EXPECT_TRUE(ppf::bridge::DecodeCdr(m.data, &o));
+      EXPECT_TRUE(ppf::msgs::DecodeCdr(m.data, &o));
       ++in_bag;
     }
     EXPECT_EQ(in_bag, said) << bag;

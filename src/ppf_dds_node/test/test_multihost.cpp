@@ -21,8 +21,8 @@
 
 #include "dds_test_util.hpp"
 #include "ppf_bag/bag.hpp"
-#include "ppf_core/evaluation.hpp"
 #include "ppf_dds_node/child_process.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 #include "test_domain.hpp"
 #include "tool_paths.hpp"
 

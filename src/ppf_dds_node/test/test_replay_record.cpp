@@ -14,10 +14,11 @@
 
 #include "dds_test_util.hpp"
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
 #include "ppf_dds_node/child_process.hpp"
 #include "ppf_dds_node/raw_type.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 #include "sensor_msgs/msg/Imu.h"
 #include "sensor_msgs/msg/PointCloud2.h"
 #include "test_domain.hpp"
@@ -57,11 +58,11 @@ Topics MakeBag(const std::string& dir, ppf::bag::Storage storage, int64_t t0) {
   for (int i = 0; i < 60; ++i) {  // 0.6 s at 100 Hz
     const int64_t t = t0 + i * 10000000LL;
     sensor_msgs::msg::Imu imu;
-    imu.header().stamp(ppf::bridge::TimeFromNanoseconds(t));
+    imu.header().stamp(ppf::msgs::TimeFromNanoseconds(t));
     imu.header().frame_id("imu");
     imu.angular_velocity().x(0.01 * i);
     imu.linear_acceleration().z(9.81);
-    const auto payload = ppf::bridge::EncodeCdr(imu);
+    const auto payload = ppf::msgs::EncodeCdr(imu);
     w.Write("/imu", t, payload);
     written["/imu"].push_back({t, payload});
     if (i % 3 == 0) {
@@ -71,7 +72,7 @@ Topics MakeBag(const std::string& dir, ppf::bag::Storage storage, int64_t t0) {
     }
     if (i % 10 == 5) {
       sensor_msgs::msg::PointCloud2 c;
-      c.header().stamp(ppf::bridge::TimeFromNanoseconds(t));
+      c.header().stamp(ppf::msgs::TimeFromNanoseconds(t));
       c.header().frame_id("lidar");
       c.height(1);
       c.width(20000);
@@ -79,7 +80,7 @@ Topics MakeBag(const std::string& dir, ppf::bag::Storage storage, int64_t t0) {
       c.row_step(16 * 20000);
       c.data().resize(16 * 20000);
       for (size_t k = 0; k < c.data().size(); ++k) c.data()[k] = static_cast<uint8_t>(k * 7 + i);
-      const auto payload = ppf::bridge::EncodeCdr(c);
+      const auto payload = ppf::msgs::EncodeCdr(c);
       w.Write("/points", t + 2, payload);
       written["/points"].push_back({t + 2, payload});
     }

@@ -82,7 +82,7 @@ build_workspace() {
   MAKEFLAGS="-j${jobs}" colcon build \
     --parallel-workers 1 \
     --event-handlers console_cohesion- console_stderr+ \
-    --cmake-args -DCMAKE_BUILD_TYPE=Release
+    --cmake-args -DCMAKE_BUILD_TYPE=Release -DPPF_JS_DIR="$ROOT/test/js"
   log "built: source install/setup.bash to use ppf_node, ppf_sim, ppf_offline, ppf_eval, ..."
 }
 

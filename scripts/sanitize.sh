@@ -57,7 +57,7 @@ build() {  # build <build-base> <install-base> <cache file> <colcon package sele
   MAKEFLAGS="-j${jobs}" colcon --log-base "log/$kind" build \
     --build-base "$bb" --install-base "$ib" --parallel-workers 1 \
     --event-handlers console_cohesion- console_stderr+ \
-    "$@" --cmake-args -C "$cache" -DPPF_JS_DIR="$ROOT/test/js"
+    "$@" --cmake-args -C "$cache" -DPPF_JS_DIR="$ROOT/test/js" --no-warn-unused-cli
 }
 
 run_tests() {  # run_tests <build-base> <install-base> <packages...>

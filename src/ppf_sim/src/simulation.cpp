@@ -2,9 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cinttypes>
 #include <cmath>
-#include <cstdio>
 #include <fstream>
 #include <iomanip>
 #include <ostream>

@@ -7,18 +7,18 @@
 #include <string>
 #include <vector>
 
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   sensor_msgs::msg::Imu msg;
   std::string error;
-  if (!ppf::bridge::DecodeCdr(data, size, &msg, &error)) return 0;
+  if (!ppf::msgs::DecodeCdr(data, size, &msg, &error)) return 0;
 
   // Compared bytewise, not with operator==: NaN fields (legal on the wire) never compare equal.
-  const std::vector<uint8_t> once = ppf::bridge::EncodeCdr(msg);
+  const std::vector<uint8_t> once = ppf::msgs::EncodeCdr(msg);
   sensor_msgs::msg::Imu msg2;
-  if (!ppf::bridge::DecodeCdr(once, &msg2, &error) || ppf::bridge::EncodeCdr(msg2) != once) {
+  if (!ppf::msgs::DecodeCdr(once, &msg2, &error) || ppf::msgs::EncodeCdr(msg2) != once) {
     std::fprintf(stderr, "Imu changed in a decode/encode/decode round trip: %s\n", error.c_str());
     std::abort();
   }

@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
 #include "ppf_core/time_field.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
 
 namespace {
 
@@ -29,14 +29,14 @@ sensor_msgs::msg::PointCloud2 WithCStrings(sensor_msgs::msg::PointCloud2 msg) {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   sensor_msgs::msg::PointCloud2 msg;
   std::string error;
-  if (!ppf::bridge::DecodeCdr(data, size, &msg, &error)) return 0;
+  if (!ppf::msgs::DecodeCdr(data, size, &msg, &error)) return 0;
 
   // Whatever decodes must survive a round trip unchanged: a difference would mean the node
   // records or republishes something other than what it received.
-  const std::vector<uint8_t> again = ppf::bridge::EncodeCdr(msg);
+  const std::vector<uint8_t> again = ppf::msgs::EncodeCdr(msg);
   sensor_msgs::msg::PointCloud2 msg2;
-  if (!ppf::bridge::DecodeCdr(again, &msg2, &error) || !(msg2 == WithCStrings(msg)) ||
-      ppf::bridge::EncodeCdr(msg2) != again) {
+  if (!ppf::msgs::DecodeCdr(again, &msg2, &error) || !(msg2 == WithCStrings(msg)) ||
+      ppf::msgs::EncodeCdr(msg2) != again) {
     std::fprintf(stderr, "PointCloud2 changed in a decode/encode/decode round trip: %s\n",
                  error.c_str());
     std::abort();

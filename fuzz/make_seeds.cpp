@@ -16,8 +16,9 @@
 #include <vector>
 
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 
 namespace fs = std::filesystem;
 
@@ -49,7 +50,7 @@ sensor_msgs::msg::PointField Field(const std::string& name, uint32_t offset, uin
 sensor_msgs::msg::PointCloud2 Cloud(uint32_t width, uint32_t height, const std::string& time_name,
                                     uint8_t time_type, uint32_t row_padding = 0) {
   sensor_msgs::msg::PointCloud2 c;
-  c.header().stamp(ppf::bridge::TimeFromNanoseconds(1700000000123456789LL));
+  c.header().stamp(ppf::msgs::TimeFromNanoseconds(1700000000123456789LL));
   c.header().frame_id("lidar");
   c.height(height);
   c.width(width);
@@ -133,9 +134,9 @@ std::vector<uint8_t> SmallBag(const fs::path& work, ppf::bag::Storage storage,
       s.linear_acceleration = Eigen::Vector3d(0, 0, 9.81);
       // Out of timestamp order on purpose: readers must sort.
       w.Write("/imu", 100000000000LL + 10000000LL * ((i * 3) % 4),
-              ppf::bridge::EncodeCdr(ppf::bridge::ToImuMsg(s, "imu")));
+              ppf::msgs::EncodeCdr(ppf::bridge::ToImuMsg(s, "imu")));
     }
-    w.Write("/points", 100005000000LL, ppf::bridge::EncodeCdr(Cloud(2, 1, "t", 6)));
+    w.Write("/points", 100005000000LL, ppf::msgs::EncodeCdr(Cloud(2, 1, "t", 6)));
     w.Close();
     file = w.storage_file();
   }
@@ -150,7 +151,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   const fs::path out(argv[1]);
-  using ppf::bridge::EncodeCdr;
+  using ppf::msgs::EncodeCdr;
 
   const fs::path pc = out / "fuzz_cdr_pointcloud2";
   WriteFile(pc / "ouster_t_uint32", EncodeCdr(Cloud(4, 1, "t", 6)));

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Sanitizer stages of CI; scripts/test.sh runs them after the normal tests, each can run alone:
 #
-#   scripts/sanitize.sh asan   clang ASan+UBSan build of ppf_msgs_idl, ppf_core, ppf_bridge, ppf_bag,
-#                              ppf_sim and ppf_fuzz (build-asan/, install-asan/), then all their
-#                              tests: unit tests, the core's end-to-end test, the simulator's, the
-#                              fuzz seed and regression replays
+#   scripts/sanitize.sh asan   clang ASan+UBSan build of ppf_msgs_idl, ppf_msgs_cdr, ppf_trajectory,
+#                              ppf_core, ppf_bridge, ppf_bag, ppf_sim and ppf_fuzz (build-asan/,
+#                              install-asan/), then all their tests: unit tests, the core's
+#                              end-to-end test, the simulator's, the fuzz seed and regression
+#                              replays
 #   scripts/sanitize.sh tsan   clang TSan build of ppf_dds_node (build-tsan/, install-tsan/) on top
 #                              of the Release install, then its tests: node, replay, record,
 #                              transport, end-to-end, as-documented, Cyclone interop (not the
@@ -56,7 +57,7 @@ build() {  # build <build-base> <install-base> <cache file> <colcon package sele
   MAKEFLAGS="-j${jobs}" colcon --log-base "log/$kind" build \
     --build-base "$bb" --install-base "$ib" --parallel-workers 1 \
     --event-handlers console_cohesion- console_stderr+ \
-    "$@" --cmake-args -C "$cache"
+    "$@" --cmake-args -C "$cache" -DPPF_JS_DIR="$ROOT/test/js" --no-warn-unused-cli
 }
 
 run_tests() {  # run_tests <build-base> <install-base> <packages...>
@@ -80,7 +81,8 @@ case "$kind" in
     export LSAN_OPTIONS="suppressions=$SAN/lsan.supp:print_suppressions=0"
     build build-asan install-asan "$SAN/asan.cmake" --packages-up-to ppf_fuzz ppf_sim || exit 1
     source_setup install-asan/setup.bash
-    run_tests build-asan install-asan ppf_msgs_idl ppf_core ppf_bridge ppf_bag ppf_sim ppf_fuzz \
+    run_tests build-asan install-asan ppf_msgs_idl ppf_msgs_cdr ppf_trajectory ppf_core ppf_bridge \
+      ppf_bag ppf_sim ppf_fuzz \
       --ctest-args --timeout 900
     ;;
   tsan)

@@ -81,11 +81,13 @@ build_workspace() {
   local jobs="${PPF_BUILD_JOBS:-$(nproc)}"
   log "building the workspace (Release, ${jobs} jobs)"
   # One package at a time with all cores each: PCL- and Eigen-heavy translation units need the
-  # memory more than they need package-level parallelism.
+  # memory more than they need package-level parallelism. test/js (the Node interop tests'
+  # scripts, npm-installed above) is the workspace's, not a package's: PPF_JS_DIR hands it to
+  # ppf_bag and ppf_sim; the other packages ignore it, hence --no-warn-unused-cli.
   MAKEFLAGS="-j${jobs}" colcon build \
     --parallel-workers 1 \
     --event-handlers console_cohesion- console_stderr+ \
-    --cmake-args -DCMAKE_BUILD_TYPE=Release
+    --cmake-args -DCMAKE_BUILD_TYPE=Release -DPPF_JS_DIR="$ROOT/test/js" --no-warn-unused-cli
   log "built: source install/setup.bash to use ppf_node, ppf_sim, ppf_offline, ppf_eval, ..."
 }
 

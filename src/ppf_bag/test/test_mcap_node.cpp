@@ -21,6 +21,10 @@ namespace {
 std::string NodeSkipReason() {
   if (std::string(NODE_EXECUTABLE).empty()) return "node not found at configure time";
   const fs::path js = PPF_BAG_JS_DIR;
+  if (js.empty()) {
+    return "PPF_JS_DIR not set (configure with -DPPF_JS_DIR=<workspace>/test/js, as "
+           "scripts/setup.sh does)";
+  }
   if (!fs::exists(js / "node_modules/@mcap/core") ||
       !fs::exists(js / "node_modules/@foxglove/rosmsg2-serialization")) {
     return "node_modules missing in " + js.string() + " (run: npm ci --prefix " + js.string() + ")";

@@ -5,38 +5,13 @@
 #include <sstream>
 
 #include "ppf_core/time_field.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 
 namespace ppf::bridge {
 
-double ToSeconds(const builtin_interfaces::msg::Time& t) {
-  return static_cast<double>(t.sec()) + 1e-9 * static_cast<double>(t.nanosec());
-}
-
-int64_t ToNanoseconds(const builtin_interfaces::msg::Time& t) {
-  return static_cast<int64_t>(t.sec()) * 1000000000LL + static_cast<int64_t>(t.nanosec());
-}
-
-builtin_interfaces::msg::Time TimeFromNanoseconds(int64_t ns) {
-  // Floor division so that negative times keep 0 <= nanosec < 1e9, as rclcpp does.
-  int64_t sec = ns / 1000000000LL;
-  int64_t rem = ns % 1000000000LL;
-  if (rem < 0) {
-    rem += 1000000000LL;
-    sec -= 1;
-  }
-  builtin_interfaces::msg::Time t;
-  t.sec(static_cast<int32_t>(sec));
-  t.nanosec(static_cast<uint32_t>(rem));
-  return t;
-}
-
-builtin_interfaces::msg::Time TimeFromSeconds(double s) {
-  return TimeFromNanoseconds(static_cast<int64_t>(std::llround(s * 1e9)));
-}
-
 std::optional<CloudView> ToCloudView(const sensor_msgs::msg::PointCloud2& msg, std::string* error) {
   CloudView view;
-  view.stamp_s = ToSeconds(msg.header().stamp());
+  view.stamp_s = msgs::ToSeconds(msg.header().stamp());
   view.frame_id = msg.header().frame_id();
   view.height = msg.height();
   view.width = msg.width();
@@ -89,7 +64,7 @@ std::optional<CloudView> ToCloudView(const sensor_msgs::msg::PointCloud2& msg, s
 
 std::optional<ImuSample> ToImuSample(const sensor_msgs::msg::Imu& msg, std::string* error) {
   ImuSample s;
-  s.stamp_s = ToSeconds(msg.header().stamp());
+  s.stamp_s = msgs::ToSeconds(msg.header().stamp());
   const auto& w = msg.angular_velocity();
   const auto& a = msg.linear_acceleration();
   s.angular_velocity = Eigen::Vector3d(w.x(), w.y(), w.z());
@@ -125,7 +100,7 @@ std::optional<ImuSample> ToImuSample(const sensor_msgs::msg::Imu& msg, std::stri
 
 sensor_msgs::msg::Imu ToImuMsg(const ImuSample& sample, const std::string& frame_id) {
   sensor_msgs::msg::Imu msg;
-  msg.header().stamp(TimeFromSeconds(sample.stamp_s));
+  msg.header().stamp(msgs::TimeFromSeconds(sample.stamp_s));
   msg.header().frame_id(frame_id);
   // No orientation estimate: REP 145 says so with -1 in the first covariance element.
   msg.orientation().w(1.0);

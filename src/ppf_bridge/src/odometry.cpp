@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 
 #include "ppf_bridge/convert.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 
 namespace ppf::bridge {
 
@@ -34,7 +35,7 @@ nav_msgs::msg::Odometry ToOdometryMsg(const ScanResult& result, const OdometryFr
                                       double angular_velocity_variance) {
   const Eigen::Vector3d& angular_velocity_imu = result.angular_velocity;
   nav_msgs::msg::Odometry odom;
-  odom.header().stamp(TimeFromSeconds(result.stamp_s));
+  odom.header().stamp(msgs::TimeFromSeconds(result.stamp_s));
   odom.header().frame_id(frames.odom_frame);
   odom.child_frame_id(frames.base_frame);
   odom.pose().pose(ToPoseMsg(result.T_world_imu));
@@ -69,7 +70,7 @@ nav_msgs::msg::Odometry ToOdometryMsg(const ScanResult& result, const OdometryFr
 
 tf2_msgs::msg::TFMessage ToTfMessage(const ScanResult& result, const OdometryFrames& frames) {
   geometry_msgs::msg::TransformStamped t;
-  t.header().stamp(TimeFromSeconds(result.stamp_s));
+  t.header().stamp(msgs::TimeFromSeconds(result.stamp_s));
   t.header().frame_id(frames.odom_frame);
   t.child_frame_id(frames.base_frame);
   const Eigen::Vector3d& p = result.T_world_imu.translation();
@@ -85,7 +86,7 @@ tf2_msgs::msg::TFMessage ToTfMessage(const ScanResult& result, const OdometryFra
 geometry_msgs::msg::PoseStamped ToPoseStamped(const ScanResult& result,
                                               const std::string& frame_id) {
   geometry_msgs::msg::PoseStamped ps;
-  ps.header().stamp(TimeFromSeconds(result.stamp_s));
+  ps.header().stamp(msgs::TimeFromSeconds(result.stamp_s));
   ps.header().frame_id(frame_id);
   ps.pose(ToPoseMsg(result.T_world_imu));
   return ps;

@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "ppf_bridge/convert.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 
 namespace ppf::bridge {
 
@@ -14,7 +15,7 @@ ppf_msgs::msg::SkeletonPlaneArray ToSkeletonPlaneArray(const std::vector<Skeleto
                                                        double stamp_s,
                                                        const std::string& frame_id) {
   ppf_msgs::msg::SkeletonPlaneArray out;
-  out.header().stamp(TimeFromSeconds(stamp_s));
+  out.header().stamp(msgs::TimeFromSeconds(stamp_s));
   out.header().frame_id(frame_id);
   for (const SkeletonPlane& p : planes) {
     if (p.track_id < 0) continue;

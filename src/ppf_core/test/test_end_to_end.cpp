@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <random>
 
-#include "ppf_core/evaluation.hpp"
 #include "ppf_core/lio_ppf.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

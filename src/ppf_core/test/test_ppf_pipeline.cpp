@@ -11,8 +11,8 @@
 #include <set>
 
 #include "ppf_core/config.hpp"
-#include "ppf_core/evaluation.hpp"
 #include "ppf_core/lio_ppf.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

@@ -30,12 +30,13 @@
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
-#include "child_process.hpp"
 #include "nav_msgs/msg/OdometryPubSubTypes.h"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_dds_node/child_process.hpp"
 #include "ppf_dds_node/dds_common.hpp"
 #include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/synthetic_scene.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 #include "sensor_msgs/msg/ImuPubSubTypes.h"
 #include "sensor_msgs/msg/PointCloud2PubSubTypes.h"
 
@@ -70,7 +71,7 @@ class OdomListener : public fdds::DataReaderListener {
       if (!info.valid_data) continue;
       const auto now = Clock::now();
       std::lock_guard<std::mutex> lock(mutex);
-      received[ppf::bridge::ToNanoseconds(msg.header().stamp())] = now;
+      received[ppf::msgs::ToNanoseconds(msg.header().stamp())] = now;
     }
   }
   std::mutex mutex;
@@ -137,7 +138,7 @@ int main(int argc, char** argv) {
         << "\", profile_name: \"" << profile << "\"}\n"
         << "queues: {scan_capacity: 2}\n";
   }
-  ppf::test::ChildProcess node;
+  ppf::dds::ChildProcess node;
   std::vector<std::string> node_env;
   if (!omp_policy.empty()) node_env.push_back("OMP_WAIT_POLICY=" + omp_policy);
   std::vector<std::string> node_argv = {node_exe, "--config", cfg};
@@ -222,7 +223,7 @@ int main(int argc, char** argv) {
       imu_w->write(&imu);
       imu_next += imu_dt;
     } else {
-      cloud.header().stamp(ppf::bridge::TimeFromNanoseconds(scan_start));
+      cloud.header().stamp(ppf::msgs::TimeFromNanoseconds(scan_start));
       written[scan_end] = Clock::now();  // before write: with SHM the node may get it first
       cloud_w->write(&cloud);
       scan_start = scan_end;
@@ -249,7 +250,7 @@ int main(int argc, char** argv) {
   }
   participant->delete_contained_entities();
   fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
-  if (!got || !ppf::test::ExitedWith(status, 0)) {
+  if (!got || !ppf::dds::ExitedWith(status, 0)) {
     std::fprintf(stderr, "ppf_node did not report a summary / exit 0\n");
     return 1;
   }

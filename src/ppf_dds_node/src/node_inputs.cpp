@@ -11,6 +11,7 @@
 #include "ppf_bridge/convert.hpp"
 #include "ppf_dds_node/dds_common.hpp"
 #include "ppf_dds_node/validating_type.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 
 namespace ppf::dds {
 
@@ -195,7 +196,7 @@ void NodeInputs::OnClouds(fdds::DataReader* reader) {
       pool_->Return(std::move(buffer));
       continue;
     }
-    const double stamp = bridge::ToSeconds(buffer->header().stamp());
+    const double stamp = msgs::ToSeconds(buffer->header().stamp());
     if (!CheckCloudUsable(*buffer, stamp)) {
       pool_->Return(std::move(buffer));
       continue;
@@ -213,7 +214,7 @@ void NodeInputs::OnClouds(fdds::DataReader* reader) {
       stats_->Add(&NodeSummary::scans_dropped);
       drop_log_.Log(Level::kWarn,
                     "core behind: dropped the oldest queued scan (stamp " +
-                        std::to_string(bridge::ToSeconds(pushed.evicted->msg->header().stamp())) +
+                        std::to_string(msgs::ToSeconds(pushed.evicted->msg->header().stamp())) +
                         ")");
     }
   }

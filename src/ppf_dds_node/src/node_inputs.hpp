@@ -18,12 +18,12 @@
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
 #include "node_stats.hpp"
-#include "ppf_bridge/msg_traits.hpp"
 #include "ppf_core/lio_ppf.hpp"
 #include "ppf_dds_node/gap_counter.hpp"
 #include "ppf_dds_node/logging.hpp"
 #include "ppf_dds_node/node_config.hpp"
 #include "ppf_dds_node/time_ordered_queue.hpp"
+#include "ppf_msgs_cdr/msg_traits.hpp"
 
 namespace ppf::dds {
 

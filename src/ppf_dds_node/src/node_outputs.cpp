@@ -2,14 +2,13 @@
 
 #include <cmath>
 #include <cstring>
-#include <fstream>
-#include <iomanip>
 
 #include "ppf_bridge/convert.hpp"
 #include "ppf_bridge/odometry.hpp"
 #include "ppf_bridge/skeleton_planes.hpp"
 #include "ppf_dds_node/dds_common.hpp"
 #include "ppf_dds_node/validating_type.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 
 namespace ppf::dds {
 
@@ -108,7 +107,7 @@ void NodeOutputs::PublishRegistered(const ScanResult& r) {
   // Written through the input's validating type (see Create).
   Validated<sensor_msgs::msg::PointCloud2> wrapped;
   sensor_msgs::msg::PointCloud2& out = wrapped.msg;
-  out.header().stamp(bridge::TimeFromSeconds(r.stamp_s));
+  out.header().stamp(msgs::TimeFromSeconds(r.stamp_s));
   out.header().frame_id(config_.odom_frame);
   out.height(1);
   const char* names[] = {"x", "y", "z"};
@@ -137,21 +136,14 @@ void NodeOutputs::PublishRegistered(const ScanResult& r) {
 }
 
 bool NodeOutputs::WriteTum(std::string* error) const {
-  std::ofstream out(config_.tum_file);
-  if (!out) {
+  // No comment line: the file holds one line per published pose.
+  TumWriter writer(config_.tum_file);
+  if (!writer.ok()) {
     *error = "cannot write trajectory file '" + config_.tum_file + "'";
     return false;
   }
-  out << std::fixed;
-  for (const Pose& pose : trajectory_) {
-    const Eigen::Vector3d p = pose.T_world_imu.translation();
-    Eigen::Quaterniond q(pose.T_world_imu.linear());
-    q.normalize();
-    out << std::setprecision(9) << pose.stamp_s << ' ' << p.x() << ' ' << p.y() << ' ' << p.z()
-        << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
-  }
-  out.flush();
-  if (!out) {
+  for (const StampedPose& pose : trajectory_) writer.Write(pose);
+  if (!writer.Close()) {
     *error = "error writing '" + config_.tum_file + "'";
     return false;
   }

@@ -12,9 +12,10 @@
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
-#include "ppf_bridge/msg_traits.hpp"
 #include "ppf_core/lio_ppf.hpp"
 #include "ppf_dds_node/node_config.hpp"
+#include "ppf_msgs_cdr/msg_traits.hpp"
+#include "ppf_trajectory/trajectory_io.hpp"
 
 namespace ppf::dds {
 
@@ -41,11 +42,6 @@ class NodeOutputs {
   void WaitForAcknowledgments();
 
  private:
-  struct Pose {
-    double stamp_s;
-    Eigen::Isometry3d T_world_imu;
-  };
-
   void PublishRegistered(const ScanResult& r);
 
   const NodeConfig config_;
@@ -60,7 +56,7 @@ class NodeOutputs {
   eprosima::fastdds::dds::TypeSupport planes_type_{
       new ppf_msgs::msg::SkeletonPlaneArrayPubSubType()};
   nav_msgs::msg::Path path_;
-  std::vector<Pose, Eigen::aligned_allocator<Pose>> trajectory_;
+  Trajectory trajectory_;  // T_world_imu per published scan
 };
 
 }  // namespace ppf::dds

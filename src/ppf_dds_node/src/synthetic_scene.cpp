@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "ppf_bridge/convert.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 
 namespace ppf::dds {
 
@@ -53,7 +54,7 @@ double CastRay(double dx, double dy, double dz) {
 
 sensor_msgs::msg::PointCloud2 MakeRoomScan(const SyntheticLidar& lidar, int64_t stamp_ns) {
   sensor_msgs::msg::PointCloud2 msg;
-  msg.header().stamp(bridge::TimeFromNanoseconds(stamp_ns));
+  msg.header().stamp(msgs::TimeFromNanoseconds(stamp_ns));
   msg.header().frame_id("lidar");
   struct F {
     const char* name;
@@ -107,7 +108,7 @@ sensor_msgs::msg::PointCloud2 MakeRoomScan(const SyntheticLidar& lidar, int64_t 
 
 sensor_msgs::msg::Imu MakeRestingImu(int64_t stamp_ns, uint64_t seq) {
   sensor_msgs::msg::Imu msg;
-  msg.header().stamp(bridge::TimeFromNanoseconds(stamp_ns));
+  msg.header().stamp(msgs::TimeFromNanoseconds(stamp_ns));
   msg.header().frame_id("imu");
   // Tiny deterministic jitter: real IMUs are never exactly constant.
   const double j = 1e-4 * static_cast<double>(static_cast<int64_t>(seq % 7) - 3);

@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
-#include "child_process.hpp"
 #include "dds_test_util.hpp"
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
+#include "ppf_dds_node/child_process.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
 #include "sensor_msgs/msg/Imu.h"
 #include "sensor_msgs/msg/PointCloud2.h"
 
@@ -55,7 +55,7 @@ inline int WriteDump(const std::string& bag, const std::string& dump, int* imus)
   while (reader.Next(m)) {
     if (m.topic == "/imu") {
       sensor_msgs::msg::Imu imu;
-      if (!ppf::bridge::DecodeCdr(m.data, &imu)) continue;
+      if (!ppf::msgs::DecodeCdr(m.data, &imu)) continue;
       w.Pod(uint8_t{1});
       w.Pod(m.timestamp_ns);
       w.Pod(imu.header().stamp().sec());
@@ -76,7 +76,7 @@ inline int WriteDump(const std::string& bag, const std::string& dump, int* imus)
       ++*imus;
     } else if (m.topic == "/points") {
       sensor_msgs::msg::PointCloud2 c;
-      if (!ppf::bridge::DecodeCdr(m.data, &c)) continue;
+      if (!ppf::msgs::DecodeCdr(m.data, &c)) continue;
       w.Pod(uint8_t{2});
       w.Pod(m.timestamp_ns);
       w.Pod(c.header().stamp().sec());
@@ -145,7 +145,7 @@ inline void RunNodeAndPeer(const std::string& peer_exe, const std::string& dir, 
            "<Peers><Peer address=\"127.0.0.1\"/></Peers>"
            "</Discovery></Domain></CycloneDDS>\n";
   }
-  ChildProcess node, peer;
+  ppf::dds::ChildProcess node, peer;
   ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", dir + "/node.yaml"}, {}, dir + "/node.log"));
   std::string line;
   ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
@@ -160,7 +160,7 @@ inline void RunNodeAndPeer(const std::string& peer_exe, const std::string& dir, 
       << "the node did not discover the peer's writers, see " << dir << "/node.log";
   std::ofstream(dir + "/go").put('\n');
   ASSERT_TRUE(peer.WaitForLine("RESULT", &run->result, 90s, &run->peer));
-  EXPECT_TRUE(ExitedWith(peer.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(peer.Wait(10s), 0));
   run->node_hwm_kb = ProcStatusKb(node.pid(), "VmHWM");
   ASSERT_TRUE(StopNodeAndReadSummary(node, &run->summary));
   run->log = ReadTextFile(dir + "/node.log");

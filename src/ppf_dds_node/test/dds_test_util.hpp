@@ -30,7 +30,7 @@
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
-#include "child_process.hpp"
+#include "ppf_dds_node/child_process.hpp"
 #include "ppf_dds_node/dds_common.hpp"
 
 namespace ppf::test {
@@ -155,9 +155,9 @@ inline ::testing::AssertionResult SimulateSequence(const std::string& sim,
   args.insert(args.begin(), sim);
   args.push_back("--out");
   args.push_back(bag);
-  ChildProcess gen;
+  ppf::dds::ChildProcess gen;
   if (!gen.Start(args, {}, log)) return ::testing::AssertionFailure() << "cannot start " << sim;
-  if (!ExitedWith(gen.Wait(std::chrono::seconds(120)), 0)) {
+  if (!ppf::dds::ExitedWith(gen.Wait(std::chrono::seconds(120)), 0)) {
     return ::testing::AssertionFailure() << "ppf_sim failed, see " << log;
   }
   return ::testing::AssertionSuccess();
@@ -165,14 +165,15 @@ inline ::testing::AssertionResult SimulateSequence(const std::string& sim,
 
 // Stops a running ppf_node with `signal` (it drains, flushes and reports), reads its
 // PPF_NODE_SUMMARY line and expects exit status 0.
-inline ::testing::AssertionResult StopNodeAndReadSummary(ChildProcess& node, std::string* summary,
+inline ::testing::AssertionResult StopNodeAndReadSummary(ppf::dds::ChildProcess& node,
+                                                         std::string* summary,
                                                          int signal = SIGINT) {
   node.Signal(signal);
   if (!node.WaitForLine("PPF_NODE_SUMMARY", summary, std::chrono::seconds(30))) {
     return ::testing::AssertionFailure() << "no PPF_NODE_SUMMARY within 30 s of the signal";
   }
   const int status = node.Wait(std::chrono::seconds(10));
-  if (!ExitedWith(status, 0)) {
+  if (!ppf::dds::ExitedWith(status, 0)) {
     return ::testing::AssertionFailure() << "ppf_node exit status " << status << " (want 0)";
   }
   return ::testing::AssertionSuccess();

@@ -13,13 +13,14 @@
 #include <string>
 #include <thread>
 
-#include "child_process.hpp"
 #include "dds_test_util.hpp"
 #include "ppf_bag/bag.hpp"
+#include "ppf_dds_node/child_process.hpp"
+#include "test_domain.hpp"
 #include "tool_paths.hpp"
 
 using namespace std::chrono_literals;
-using ppf::test::ChildProcess;
+using ppf::dds::ChildProcess;
 using ppf::test::SummaryField;
 
 namespace {
@@ -73,7 +74,7 @@ TEST_F(AsDocumented, ReplayIntoNodeLosesNoCloudWithoutAProfileInTheEnvironment) 
       {PPF_REPLAY_EXE, "--bag", dir_ + "/bag", "--wait-matched", "10", "--domain", domain}, {},
       dir + "/replay.log"));
   ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &line, 40s)) << "see " << dir << "/replay.log";
-  EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(replay.Wait(10s), 0));
   // Each tool says which transport it chose (the project's profile, found on its own).
   EXPECT_NE(ppf::test::ReadTextFile(dir + "/replay.log").find("shm_udp.xml (project default"),
             std::string::npos);
@@ -86,7 +87,7 @@ TEST_F(AsDocumented, ReplayIntoNodeLosesNoCloudWithoutAProfileInTheEnvironment) 
   record.Signal(SIGINT);
   std::string record_done;
   ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &record_done, 20s));
-  EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(record.Wait(10s), 0));
   std::printf("%s\n%s\n", summary.c_str(), record_done.c_str());
 
   double clouds = 0, imus = 0;
@@ -121,7 +122,7 @@ TEST(AsDocumentedConfig, NodeRefusesACorePresetAsItsConfig) {
                          {}, log));
   std::string line;
   EXPECT_FALSE(node.WaitForLine("PPF_NODE_READY", &line, 5s));
-  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 2));
+  EXPECT_TRUE(ppf::dds::ExitedWith(node.Wait(10s), 2));
   const std::string err = ppf::test::ReadTextFile(log);
   EXPECT_NE(err.find("not a ppf_node config"), std::string::npos) << err;
   EXPECT_NE(err.find("core.config_file"), std::string::npos) << err;

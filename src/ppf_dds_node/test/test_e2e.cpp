@@ -13,17 +13,20 @@
 #include <string>
 #include <thread>
 
-#include "child_process.hpp"
 #include "dds_test_util.hpp"
 #include "nav_msgs/msg/Odometry.h"
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
-#include "ppf_core/evaluation.hpp"
+#include "ppf_dds_node/child_process.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
+#include "ppf_msgs_cdr/time.hpp"
+#include "ppf_trajectory/evaluation.hpp"
+#include "ppf_trajectory/trajectory_io.hpp"
+#include "test_domain.hpp"
 #include "tool_paths.hpp"
 
 using namespace std::chrono_literals;
-using ppf::test::ChildProcess;
+using ppf::dds::ChildProcess;
 using ppf::test::kProfile;
 using ppf::test::kProfiles;
 using ppf::test::SummaryField;
@@ -34,25 +37,28 @@ namespace {
 size_t OdometryBagToTum(const std::string& bag, const std::string& tum, std::string* frames) {
   ppf::bag::Reader reader(bag);
   reader.SetTopicFilter({"/odometry"});
-  std::ofstream out(tum);
-  out.precision(9);
-  out << std::fixed;
+  ppf::TumWriter out(tum);
   ppf::bag::Message m;
   size_t n = 0;
   while (reader.Next(m)) {
     nav_msgs::msg::Odometry o;
     std::string error;
-    if (!ppf::bridge::DecodeCdr(m.data, &o, &error)) {
+    if (!ppf::msgs::DecodeCdr(m.data, &o, &error)) {
       ADD_FAILURE() << "recorded odometry does not decode: " << error;
       continue;
     }
     if (frames->empty()) *frames = o.header().frame_id() + "->" + o.child_frame_id();
     const auto& p = o.pose().pose();
-    out << ppf::bridge::ToSeconds(o.header().stamp()) << ' ' << p.position().x() << ' '
-        << p.position().y() << ' ' << p.position().z() << ' ' << p.orientation().x() << ' '
-        << p.orientation().y() << ' ' << p.orientation().z() << ' ' << p.orientation().w() << '\n';
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(p.position().x(), p.position().y(), p.position().z());
+    T.linear() = Eigen::Quaterniond(p.orientation().w(), p.orientation().x(), p.orientation().y(),
+                                    p.orientation().z())
+                     .normalized()
+                     .toRotationMatrix();
+    out.Write(ppf::msgs::ToNanoseconds(o.header().stamp()), T);
     ++n;
   }
+  EXPECT_TRUE(out.Close()) << "cannot write " << tum;
   return n;
 }
 
@@ -121,7 +127,7 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   }
   ASSERT_TRUE(done) << "replay did not finish";
   out->replay_done = line;
-  EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(replay.Wait(10s), 0));
   // The node works through what it has queued; give it a moment, then stop it as a user would.
   for (int i = 0; i < 20; ++i) {
     out->max_rss_kb = std::max(out->max_rss_kb, ppf::test::ProcStatusKb(node.pid(), "VmRSS"));
@@ -130,7 +136,7 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   ASSERT_TRUE(ppf::test::StopNodeAndReadSummary(node, &out->summary, stop_signal));
   record.Signal(SIGINT);
   ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &out->record_done, 20s));
-  EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(record.Wait(10s), 0));
   std::printf("%s\n%s\n%s\nnode max VmRSS %ld kB\n", out->replay_done.c_str(), out->summary.c_str(),
               out->record_done.c_str(), out->max_rss_kb);
 }
@@ -220,12 +226,13 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
       if (p != std::string::npos)
         rmse = std::atof(line.c_str() + line.find_first_of("0123456789", p));
     }
-    EXPECT_TRUE(ppf::test::ExitedWith(eval.Wait(10s), 0));
+    EXPECT_TRUE(ppf::dds::ExitedWith(eval.Wait(10s), 0));
     std::printf("ppf_eval ape:\n%s", all.c_str());
     EXPECT_NEAR(rmse, in_process.stats.rmse, 1e-3) << "ppf_eval disagrees with ComputeApe";
   } else {
     std::printf(
-        "NOTE: ppf_eval not found; APE from ppf_core::ComputeApe (the code ppf_eval runs)\n");
+        "NOTE: ppf_eval not found; APE from ppf::ComputeApe (ppf_trajectory, the code ppf_eval "
+        "runs)\n");
   }
   const double percent = 100.0 * rmse / path;
   std::printf("APE rmse %.4f m over %zu poses on a %.2f m path = %.3f %% (bound 0.5 %%)\n", rmse,
@@ -242,7 +249,7 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
         {offline_, "--bag", dir_ + "/bag", "--config", std::string(PPF_CONFIG_DIR) + "/hdl32.yaml",
          "--config", dir_ + "/bag/calibration.yaml", "--out", dir + "/offline.tum", "--quiet"},
         {}, dir + "/offline.log"));
-    ASSERT_TRUE(ppf::test::ExitedWith(offline.Wait(60s), 0));
+    ASSERT_TRUE(ppf::dds::ExitedWith(offline.Wait(60s), 0));
     ppf::Trajectory off;
     ASSERT_TRUE(ppf::ReadTum(dir + "/offline.tum", &off, &error)) << error;
     const ppf::EvalResult diff = ppf::ComputeApe(off, est, o);

@@ -14,16 +14,17 @@
 #include <thread>
 #include <vector>
 
-#include "child_process.hpp"
 #include "dds_test_util.hpp"
 #include "nav_msgs/msg/Odometry.h"
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_dds_node/child_process.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
+#include "test_domain.hpp"
 #include "tool_paths.hpp"
 
 using namespace std::chrono_literals;
-using ppf::test::ChildProcess;
+using ppf::dds::ChildProcess;
 using ppf::test::CountLinesWith;
 using ppf::test::kProfile;
 using ppf::test::kProfiles;
@@ -96,7 +97,7 @@ class Faults : public ::testing::Test {
     rec.Signal(SIGINT);
     std::string done;
     if (!rec.WaitForLine("PPF_RECORD_DONE", &done, 20s)) return -1;
-    EXPECT_TRUE(ppf::test::ExitedWith(rec.Wait(10s), 0));
+    EXPECT_TRUE(ppf::dds::ExitedWith(rec.Wait(10s), 0));
     std::printf("%s: %s\n", bag.c_str(), done.c_str());
     const int said = static_cast<int>(SummaryField(done, "/odometry"));
     ppf::bag::Reader reader(bag);
@@ -105,7 +106,7 @@ class Faults : public ::testing::Test {
     while (reader.Next(m)) {
       nav_msgs::msg::Odometry o;
       EXPECT_EQ(m.topic, "/odometry");
-      EXPECT_TRUE(ppf::bridge::DecodeCdr(m.data, &o));
+      EXPECT_TRUE(ppf::msgs::DecodeCdr(m.data, &o));
       ++in_bag;
     }
     EXPECT_EQ(in_bag, said) << bag;
@@ -145,7 +146,7 @@ TEST_F(Faults, ReplayKilledWithSigkillAndRestartedNodeRestartsOnceAndResumes) {
   ASSERT_NO_FATAL_FAILURE(StartReplay(second, dir, "replay2.log"));
   std::string line;
   ASSERT_TRUE(second.WaitForLine("PPF_REPLAY_DONE", &line, 40s));
-  EXPECT_TRUE(ppf::test::ExitedWith(second.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(second.Wait(10s), 0));
   std::this_thread::sleep_for(1500ms);  // the node works through what it has queued
   std::string s;
   ASSERT_TRUE(ppf::test::StopNodeAndReadSummary(node, &s));
@@ -198,7 +199,7 @@ TEST_F(Faults, NodeRestartedWhileReplayRunsAndRecordersStartedBeforeAndAfterIt) 
   ASSERT_NO_FATAL_FAILURE(StartRecorder(rec_after, dir, "rec_after"));
   ASSERT_TRUE(rec_after.WaitForLine("PPF_RECORD_MATCHED /odometry 1", &line, 20s));
   ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &line, 40s));
-  EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(replay.Wait(10s), 0));
   EXPECT_EQ(SummaryField(line, "/points"), clouds_);
   std::this_thread::sleep_for(1500ms);
   std::string s;

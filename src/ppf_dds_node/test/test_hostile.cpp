@@ -15,6 +15,7 @@
 
 #include "cyclone_peer_util.hpp"
 #include "dds_test_util.hpp"
+#include "test_domain.hpp"
 #include "tool_paths.hpp"
 
 using ppf::test::CountLinesWith;

@@ -19,14 +19,15 @@
 #include <thread>
 #include <vector>
 
-#include "child_process.hpp"
 #include "dds_test_util.hpp"
 #include "ppf_bag/bag.hpp"
-#include "ppf_core/evaluation.hpp"
+#include "ppf_dds_node/child_process.hpp"
+#include "ppf_trajectory/evaluation.hpp"
+#include "test_domain.hpp"
 #include "tool_paths.hpp"
 
 using namespace std::chrono_literals;
-using ppf::test::ChildProcess;
+using ppf::dds::ChildProcess;
 using ppf::test::SummaryField;
 
 namespace {
@@ -58,7 +59,7 @@ bool RunCommand(const std::vector<std::string>& argv, const std::string& err_fil
     *error = "cannot start " + argv[0];
     return false;
   }
-  if (!ppf::test::ExitedWith(p.Wait(20s), 0)) {
+  if (!ppf::dds::ExitedWith(p.Wait(20s), 0)) {
     std::string cmd;
     for (const auto& a : argv) cmd += a + " ";
     *error = cmd + "failed: " + ReadFile(err_file);
@@ -204,7 +205,7 @@ class MultiHost : public ::testing::Test {
         {sim, "--scene", "urban", "--lidar", "hdl64", "--duration", std::to_string(kBagSeconds),
          "--seed", "3", "--storage", "mcap", "--out", dir_ + "/bag"},
         {}, dir_ + "/sim.log"));
-    ASSERT_TRUE(ppf::test::ExitedWith(p.Wait(180s), 0)) << "ppf_sim failed, see " << dir_;
+    ASSERT_TRUE(ppf::dds::ExitedWith(p.Wait(180s), 0)) << "ppf_sim failed, see " << dir_;
     for (const auto& t : ppf::bag::ReadInfo(dir_ + "/bag").topics) {
       if (t.info.name == "/points") bag_scans_ = static_cast<double>(t.message_count);
       if (t.info.name == "/imu") bag_imus_ = static_cast<double>(t.message_count);
@@ -267,12 +268,12 @@ class MultiHost : public ::testing::Test {
     ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &out->replay_done,
                                    std::chrono::seconds(static_cast<int>(kBagSeconds) + 30)))
         << "replay did not finish";
-    EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
+    EXPECT_TRUE(ppf::dds::ExitedWith(replay.Wait(10s), 0));
     // The node works through its queue (a few HDL-64 scans), then is stopped as a user would.
     std::this_thread::sleep_for(2s);
     node.Signal(SIGINT);
     ASSERT_TRUE(node.WaitForLine("PPF_NODE_SUMMARY", &out->summary, 30s));
-    EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(10s), 0));
+    EXPECT_TRUE(ppf::dds::ExitedWith(node.Wait(10s), 0));
     out->node_log = ReadFile(dir + "/node.log");
     std::printf("%s\n%s\n", out->replay_done.c_str(), out->summary.c_str());
     if (cut_link) {

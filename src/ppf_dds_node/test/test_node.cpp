@@ -11,21 +11,23 @@
 #include <sstream>
 #include <string>
 
-#include "child_process.hpp"
 #include "dds_test_util.hpp"
 #include "nav_msgs/msg/OdometryPubSubTypes.h"
 #include "nav_msgs/msg/PathPubSubTypes.h"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_dds_node/child_process.hpp"
 #include "ppf_dds_node/raw_type.hpp"
 #include "ppf_dds_node/synthetic_scene.hpp"
 #include "ppf_msgs/msg/SkeletonPlaneArrayPubSubTypes.h"
+#include "ppf_msgs_cdr/cdr.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 #include "sensor_msgs/msg/ImuPubSubTypes.h"
 #include "sensor_msgs/msg/PointCloud2PubSubTypes.h"
+#include "test_domain.hpp"
 #include "tf2_msgs/msg/TFMessagePubSubTypes.h"
 
 using namespace std::chrono_literals;
-using ppf::test::ChildProcess;
+using ppf::dds::ChildProcess;
 using ppf::test::Collector;
 using ppf::test::kProfile;
 using ppf::test::kProfiles;
@@ -124,7 +126,7 @@ void DriveStaticRoom(fdds::DataWriter* imu_w, fdds::DataWriter* cloud_w,
     }
     std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(scan_end - kT0));
     if (s == 0) continue;
-    cloud.header().stamp(ppf::bridge::TimeFromNanoseconds(scan_end - 100000000LL));
+    cloud.header().stamp(ppf::msgs::TimeFromNanoseconds(scan_end - 100000000LL));
     ASSERT_TRUE(cloud_w->write(&cloud));
   }
 }
@@ -207,12 +209,12 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   ppf::dds::RawMessage bad;
   bad.payload = {0x00, 0x01, 0x00, 0x00, 0xff, 0xff, 0xff, 0x7f, 0x01};
   ASSERT_TRUE(bad_w->write(&bad));
-  bad.payload = ppf::bridge::EncodeCdr(cloud);
+  bad.payload = ppf::msgs::EncodeCdr(cloud);
   bad.payload.resize(bad.payload.size() / 2);
   ASSERT_TRUE(bad_w->write(&bad));
   sensor_msgs::msg::PointCloud2 weird = cloud;
   weird.fields()[0].datatype(42);
-  bad.payload = ppf::bridge::EncodeCdr(weird);
+  bad.payload = ppf::msgs::EncodeCdr(weird);
   ASSERT_TRUE(bad_w->write(&bad));
   // A NaN IMU sample is rejected by the listener, not fed to the filter.
   sensor_msgs::msg::Imu nan_imu = ppf::dds::MakeRestingImu(imu_t, seq++);
@@ -244,7 +246,7 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
     EXPECT_EQ(o.header().frame_id(), "odom_test");
     EXPECT_EQ(o.child_frame_id(), "imu_link");
     EXPECT_TRUE(AllFinite(o));
-    const double t = ppf::bridge::ToSeconds(o.header().stamp());
+    const double t = ppf::msgs::ToSeconds(o.header().stamp());
     EXPECT_GT(t, prev);
     prev = t;
     // Static sensor in a static room: the pose must stay put.
@@ -333,7 +335,7 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
     const auto all = odom.Samples();
     double prev = -1;
     for (const auto& o : all) {
-      const double t = ppf::bridge::ToSeconds(o.header().stamp());
+      const double t = ppf::msgs::ToSeconds(o.header().stamp());
       if (t < prev) break;
       prev = t;
       ++first_pass;
@@ -364,8 +366,8 @@ TEST(NodeProcess, BadConfigFailsFastWithExitCode) {
   }
   ChildProcess node;
   ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", cfg}, {}, dir + "/node.log"));
-  EXPECT_TRUE(ppf::test::ExitedWith(node.Wait(15s), 2));
+  EXPECT_TRUE(ppf::dds::ExitedWith(node.Wait(15s), 2));
   ChildProcess missing;
   ASSERT_TRUE(missing.Start({PPF_NODE_EXE, "--config", dir + "/nope.yaml"}, {}, dir + "/m.log"));
-  EXPECT_TRUE(ppf::test::ExitedWith(missing.Wait(15s), 2));
+  EXPECT_TRUE(ppf::dds::ExitedWith(missing.Wait(15s), 2));
 }

@@ -8,14 +8,14 @@
 
 #include <fastdds/rtps/common/SerializedPayload.h>
 
-#include "ppf_bridge/cdr.hpp"
-#include "ppf_bridge/cdr_payload.hpp"
 #include "ppf_core/config_table.hpp"
 #include "ppf_dds_node/gap_counter.hpp"
 #include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/logging.hpp"
 #include "ppf_dds_node/node_config.hpp"
 #include "ppf_dds_node/time_ordered_queue.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
+#include "ppf_msgs_cdr/cdr_payload.hpp"
 
 namespace ppf::dds {
 namespace {
@@ -279,7 +279,7 @@ TEST(DecodeCdrPayload, AgreesWithDecodeCdrOnValidAndMalformedPayloads) {
   c.point_step(4);
   c.row_step(12);
   c.data() = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
-  const std::vector<uint8_t> good = bridge::EncodeCdr(c);
+  const std::vector<uint8_t> good = msgs::EncodeCdr(c);
   std::vector<uint8_t> padded = good;
   while (padded.size() % 4) padded.push_back(0);
   std::vector<uint8_t> truncated(good.begin(), good.begin() + static_cast<long>(good.size() / 2));
@@ -295,8 +295,8 @@ TEST(DecodeCdrPayload, AgreesWithDecodeCdrOnValidAndMalformedPayloads) {
     payload.length = static_cast<uint32_t>(bytes->size());
     sensor_msgs::msg::PointCloud2 a, b;
     std::string ea, eb;
-    const bool ok_a = bridge::DecodeCdr(*bytes, &a, &ea);
-    const bool ok_b = bridge::DecodeCdrPayload(&payload, &b, &eb);
+    const bool ok_a = msgs::DecodeCdr(*bytes, &a, &ea);
+    const bool ok_b = msgs::DecodeCdrPayload(&payload, &b, &eb);
     EXPECT_EQ(ok_a, ok_b) << ea << " / " << eb;
     if (ok_a && ok_b) {
       EXPECT_EQ(a, b);

@@ -14,17 +14,19 @@
 #include <thread>
 #include <vector>
 
-#include "child_process.hpp"
 #include "dds_test_util.hpp"
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_dds_node/child_process.hpp"
 #include "ppf_dds_node/raw_type.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 #include "sensor_msgs/msg/Imu.h"
 #include "sensor_msgs/msg/PointCloud2.h"
+#include "test_domain.hpp"
 
 using namespace std::chrono_literals;
-using ppf::test::ChildProcess;
+using ppf::dds::ChildProcess;
 namespace fdds = eprosima::fastdds::dds;
 
 namespace {
@@ -58,11 +60,11 @@ Topics MakeBag(const std::string& dir, ppf::bag::Storage storage, int64_t t0) {
   for (int i = 0; i < 60; ++i) {  // 0.6 s at 100 Hz
     const int64_t t = t0 + i * 10000000LL;
     sensor_msgs::msg::Imu imu;
-    imu.header().stamp(ppf::bridge::TimeFromNanoseconds(t));
+    imu.header().stamp(ppf::msgs::TimeFromNanoseconds(t));
     imu.header().frame_id("imu");
     imu.angular_velocity().x(0.01 * i);
     imu.linear_acceleration().z(9.81);
-    const auto payload = ppf::bridge::EncodeCdr(imu);
+    const auto payload = ppf::msgs::EncodeCdr(imu);
     w.Write("/imu", t, payload);
     written["/imu"].push_back({t, payload});
     if (i % 3 == 0) {
@@ -72,7 +74,7 @@ Topics MakeBag(const std::string& dir, ppf::bag::Storage storage, int64_t t0) {
     }
     if (i % 10 == 5) {
       sensor_msgs::msg::PointCloud2 c;
-      c.header().stamp(ppf::bridge::TimeFromNanoseconds(t));
+      c.header().stamp(ppf::msgs::TimeFromNanoseconds(t));
       c.header().frame_id("lidar");
       c.height(1);
       c.width(20000);
@@ -80,7 +82,7 @@ Topics MakeBag(const std::string& dir, ppf::bag::Storage storage, int64_t t0) {
       c.row_step(16 * 20000);
       c.data().resize(16 * 20000);
       for (size_t k = 0; k < c.data().size(); ++k) c.data()[k] = static_cast<uint8_t>(k * 7 + i);
-      const auto payload = ppf::bridge::EncodeCdr(c);
+      const auto payload = ppf::msgs::EncodeCdr(c);
       w.Write("/points", t + 2, payload);
       written["/points"].push_back({t + 2, payload});
     }
@@ -118,11 +120,11 @@ std::string ReplayAndRecord(const std::string& bag, const std::string& out,
   play.insert(play.end(), dds.begin(), dds.end());
   EXPECT_TRUE(replay.Start(play, {}, out + ".replay.log"));
   EXPECT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &line, 40s)) << "see " << out << ".replay.log";
-  EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(replay.Wait(10s), 0));
   // The replay waited for acknowledgements of its reliable writers before reporting DONE.
   record.Signal(SIGINT);
   EXPECT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &line, 20s));
-  EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(record.Wait(10s), 0));
   return out;
 }
 
@@ -269,13 +271,13 @@ TEST(ReplayRecordOptions, LoopUntilInterruptedAndExplicitTypes) {
   std::this_thread::sleep_for(1500ms);  // 0.3 s per pass at 2x: several passes
   replay.Signal(SIGINT);
   ASSERT_TRUE(replay.WaitForLine("PPF_REPLAY_DONE", &line, 20s));
-  EXPECT_TRUE(ppf::test::ExitedWith(replay.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(replay.Wait(10s), 0));
   const int loops = std::atoi(line.c_str() + line.find("loops=") + 6);
   EXPECT_GE(loops, 2) << line;
   std::string done;
   record.Signal(SIGINT);
   ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &done, 20s));
-  EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(record.Wait(10s), 0));
   std::map<std::string, std::string> types;
   const Topics got = ReadBag(dir + "/out", &types);
   EXPECT_EQ(types["/imu"], "sensor_msgs/msg/Imu");
@@ -390,7 +392,7 @@ TEST(ReplayRecordOptions, RecorderCreatingReadersWhileWritersAppearNeitherHangsN
     std::string done;
     ASSERT_TRUE(record.WaitForLine("PPF_RECORD_DONE", &done, 10s))
         << "ppf_record did not stop on SIGINT (deadlocked?), see " << out << ".record.log";
-    EXPECT_TRUE(ppf::test::ExitedWith(record.Wait(10s), 0));
+    EXPECT_TRUE(ppf::dds::ExitedWith(record.Wait(10s), 0));
     // Reliable keep-all on both sides, acknowledged: every message of every topic.
     for (const auto& n : names) {
       EXPECT_NE(done.find(" " + n + "=" + std::to_string(kPerTopic)), std::string::npos)
@@ -406,11 +408,11 @@ TEST(ReplayRecordOptions, RecorderCreatingReadersWhileWritersAppearNeitherHangsN
 TEST(ReplayRecordOptions, BadArgumentsAreRejected) {
   ChildProcess p;
   ASSERT_TRUE(p.Start({PPF_REPLAY_EXE, "--bag", "/nonexistent/bag"}));
-  EXPECT_TRUE(ppf::test::ExitedWith(p.Wait(15s), 1));
+  EXPECT_TRUE(ppf::dds::ExitedWith(p.Wait(15s), 1));
   ChildProcess q;
   ASSERT_TRUE(q.Start({PPF_RECORD_EXE, "--topics", "/x"}));  // no --out
-  EXPECT_TRUE(ppf::test::ExitedWith(q.Wait(15s), 2));
+  EXPECT_TRUE(ppf::dds::ExitedWith(q.Wait(15s), 2));
   ChildProcess r;
   ASSERT_TRUE(r.Start({PPF_REPLAY_EXE, "--bag", "/tmp", "--remap", "nonsense"}));
-  EXPECT_TRUE(ppf::test::ExitedWith(r.Wait(15s), 2));
+  EXPECT_TRUE(ppf::dds::ExitedWith(r.Wait(15s), 2));
 }

@@ -16,10 +16,11 @@
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
-#include "child_process.hpp"
+#include "ppf_dds_node/child_process.hpp"
 #include "ppf_dds_node/dds_common.hpp"
 #include "sensor_msgs/msg/ImuPubSubTypes.h"
 #include "sensor_msgs/msg/PointCloud2PubSubTypes.h"
+#include "test_domain.hpp"
 #include "transport_payload.hpp"
 
 namespace fdds = eprosima::fastdds::dds;
@@ -83,7 +84,7 @@ void RunTransportTest(const std::string& profiles_file, const std::string& profi
   ASSERT_NE(pub.cloud_writer, nullptr);
   ASSERT_NE(pub.imu_writer, nullptr);
 
-  ppf::test::ChildProcess peer;
+  ppf::dds::ChildProcess peer;
   ASSERT_TRUE(peer.Start({PPF_TRANSPORT_PEER, std::to_string(domain),
                           peer_profiles_file ? *peer_profiles_file : profiles_file,
                           peer_profile ? *peer_profile : profile_name, "40"},
@@ -130,7 +131,7 @@ void RunTransportTest(const std::string& profiles_file, const std::string& profi
            << " imus=" << ppf::test::kTransportImus
            << " corrupt=0 duplicates=0 out_of_order=0 complete=1";
   EXPECT_EQ(line, expected.str());
-  EXPECT_TRUE(ppf::test::ExitedWith(peer.Wait(10s), 0));
+  EXPECT_TRUE(ppf::dds::ExitedWith(peer.Wait(10s), 0));
 }
 
 }  // namespace

@@ -1,8 +1,8 @@
 #include "ppf_sim/bag_output.hpp"
 
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
-#include "ppf_bridge/convert.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
+#include "ppf_msgs_cdr/time.hpp"
 #include "sensor_msgs/msg/Imu.h"
 #include "sensor_msgs/msg/PointCloud2.h"
 
@@ -10,7 +10,7 @@ namespace ppf::sim {
 
 std::vector<uint8_t> EncodePointCloud2(const CloudBuffer& c) {
   sensor_msgs::msg::PointCloud2 msg;
-  msg.header().stamp(bridge::TimeFromNanoseconds(c.stamp_ns));
+  msg.header().stamp(msgs::TimeFromNanoseconds(c.stamp_ns));
   msg.header().frame_id(c.frame_id);
   msg.height(c.height);
   msg.width(c.width);
@@ -28,12 +28,12 @@ std::vector<uint8_t> EncodePointCloud2(const CloudBuffer& c) {
   msg.row_step(c.row_step);
   msg.data(c.data);
   msg.is_dense(c.is_dense);
-  return bridge::EncodeCdr(msg);
+  return msgs::EncodeCdr(msg);
 }
 
 std::vector<uint8_t> EncodeImu(const ImuMessage& m) {
   sensor_msgs::msg::Imu msg;
-  msg.header().stamp(bridge::TimeFromNanoseconds(m.stamp_ns));
+  msg.header().stamp(msgs::TimeFromNanoseconds(m.stamp_ns));
   msg.header().frame_id(m.frame_id);
   // No orientation estimate (REP 145: -1 in the first covariance element).
   msg.orientation().w(1.0);
@@ -48,13 +48,13 @@ std::vector<uint8_t> EncodeImu(const ImuMessage& m) {
     msg.angular_velocity_covariance()[4 * k] = m.gyro_var;
     msg.linear_acceleration_covariance()[4 * k] = m.accel_var;
   }
-  return bridge::EncodeCdr(msg);
+  return msgs::EncodeCdr(msg);
 }
 
 bool DecodePointCloud2(const uint8_t* data, size_t size, CloudBuffer* out, std::string* error) {
   sensor_msgs::msg::PointCloud2 msg;
-  if (!bridge::DecodeCdr(data, size, &msg, error)) return false;
-  out->stamp_ns = bridge::ToNanoseconds(msg.header().stamp());
+  if (!msgs::DecodeCdr(data, size, &msg, error)) return false;
+  out->stamp_ns = msgs::ToNanoseconds(msg.header().stamp());
   out->frame_id = msg.header().frame_id();
   out->height = msg.height();
   out->width = msg.width();
@@ -72,8 +72,8 @@ bool DecodePointCloud2(const uint8_t* data, size_t size, CloudBuffer* out, std::
 
 bool DecodeImu(const uint8_t* data, size_t size, ImuMessage* out, std::string* error) {
   sensor_msgs::msg::Imu msg;
-  if (!bridge::DecodeCdr(data, size, &msg, error)) return false;
-  out->stamp_ns = bridge::ToNanoseconds(msg.header().stamp());
+  if (!msgs::DecodeCdr(data, size, &msg, error)) return false;
+  out->stamp_ns = msgs::ToNanoseconds(msg.header().stamp());
   out->frame_id = msg.header().frame_id();
   out->gyro[0] = msg.angular_velocity().x();
   out->gyro[1] = msg.angular_velocity().y();

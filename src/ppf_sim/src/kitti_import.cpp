@@ -1,6 +1,5 @@
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -11,6 +10,7 @@
 #include "ppf_sim/importers.hpp"
 #include "ppf_sim/lidar_model.hpp"
 #include "ppf_sim/trajectory.hpp"
+#include "ppf_trajectory/trajectory_io.hpp"
 
 namespace ppf::sim {
 
@@ -192,9 +192,9 @@ ImportSummary ImportKittiRaw(const std::string& raw_dir, const std::string& out_
   // first fix), but kept gravity-aligned: origin at the first fix, axes east-north-up, rotation
   // R = Rz(yaw) Ry(pitch) Rx(roll) of the OXTS (IMU) frame.
   if (!imu.empty()) {
-    std::ofstream gt(fs::path(out_dir) / "groundtruth.tum");
-    gt << "# timestamp tx ty tz qx qy qz qw: T_world_imu from OXTS (IMU frame in a local "
-          "east-north-up frame at the first fix)\n";
+    TumWriter gt((fs::path(out_dir) / "groundtruth.tum").string(),
+                 "timestamp tx ty tz qx qy qz qw: T_world_imu from OXTS (IMU frame in a local "
+                 "east-north-up frame at the first fix)");
     const double er = 6378137.0;
     const double scale = std::cos(imu[0].lat * M_PI / 180.0);
     auto mercator = [&](const Imu& s) {
@@ -206,14 +206,7 @@ ImportSummary ImportKittiRaw(const std::string& raw_dir, const std::string& out_
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       T.linear() = EulerToRotation({s.roll, s.pitch, s.yaw});
       T.translation() = mercator(s) - origin;
-      Eigen::Quaterniond q(T.linear());
-      if (q.w() < 0) q.coeffs() *= -1.0;
-      char buf[256];
-      std::snprintf(buf, sizeof(buf), "%lld.%09lld %.6f %.6f %.6f %.9f %.9f %.9f %.9f",
-                    static_cast<long long>(s.t / 1000000000LL),
-                    static_cast<long long>(s.t % 1000000000LL), T.translation().x(),
-                    T.translation().y(), T.translation().z(), q.x(), q.y(), q.z(), q.w());
-      gt << buf << "\n";
+      gt.Write(s.t, T);
     }
     sum.notes.push_back("groundtruth.tum written from the OXTS poses (ENU at the first fix)");
   }

@@ -2,13 +2,13 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cinttypes>
 #include <cmath>
-#include <cstdio>
 #include <fstream>
 #include <iomanip>
 #include <ostream>
 #include <sstream>
+
+#include "ppf_trajectory/trajectory_io.hpp"
 
 namespace ppf::sim {
 
@@ -29,18 +29,6 @@ std::string Vec(const double* v, int n, int prec = 9) {
 }  // namespace
 
 SimConfig::SimConfig() { scan.T_imu_lidar = DefaultImuLidarExtrinsic(); }
-
-std::string TumLine(int64_t stamp_ns, const Eigen::Isometry3d& T) {
-  // w >= 0: one sign for each rotation, so consecutive lines never flip sign.
-  Eigen::Quaterniond q(T.linear());
-  if (q.w() < 0) q.coeffs() *= -1.0;
-  char buf[256];
-  const int64_t sec = stamp_ns / 1000000000LL, nsec = stamp_ns % 1000000000LL;
-  std::snprintf(buf, sizeof(buf), "%" PRId64 ".%09" PRId64 " %.9f %.9f %.9f %.9f %.9f %.9f %.9f",
-                sec, nsec, T.translation().x(), T.translation().y(), T.translation().z(), q.x(),
-                q.y(), q.z(), q.w());
-  return buf;
-}
 
 SimSummary RunSimulation(const SimConfig& cfg, std::ostream& log) {
   SimSummary sum;
@@ -109,13 +97,14 @@ SimSummary RunSimulation(const SimConfig& cfg, std::ostream& log) {
 
   // Ground truth: the IMU (body) frame in the gravity-aligned world frame, at every IMU sample.
   {
-    std::ofstream gt(cfg.out_dir + "/groundtruth.tum");
-    gt << "# timestamp tx ty tz qx qy qz qw: T_world_imu (IMU/body frame in the gravity-aligned "
-          "world frame, z up), at every IMU sample\n";
+    TumWriter gt(
+        cfg.out_dir + "/groundtruth.tum",
+        "timestamp tx ty tz qx qy qz qw: T_world_imu (IMU/body frame in the gravity-aligned "
+        "world frame, z up), at every IMU sample");
     std::ofstream bias(cfg.out_dir + "/imu_bias.csv");
     bias << "t,bgx,bgy,bgz,bax,bay,baz\n" << std::setprecision(12);
     for (size_t i = 0; i < imu.size(); ++i) {
-      gt << TumLine(imu_stamp(i), world.trajectory.Pose(imu[i].t)) << "\n";
+      gt.Write(imu_stamp(i), world.trajectory.Pose(imu[i].t));
       const int64_t s = imu_stamp(i);
       bias << s / 1000000000LL << "." << std::setw(9) << std::setfill('0') << s % 1000000000LL
            << std::setfill(' ') << std::setw(0);

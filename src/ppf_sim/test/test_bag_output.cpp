@@ -9,6 +9,7 @@
 
 #include "ppf_bag/bag.hpp"
 #include "ppf_sim/simulation.hpp"
+#include "ppf_trajectory/trajectory_io.hpp"
 
 namespace ppf::sim {
 namespace {
@@ -128,7 +129,7 @@ TEST_P(SimBag, ReadableWithRightCountsTypesAndBytes) {
     for (double& x : v) fields >> x;
     EXPECT_GE(v[7], 0.0);  // qw: one sign per rotation
     if (rows == 250) {
-      EXPECT_EQ(line, TumLine(cfg.start_ns + 250 * 5000000LL, world.trajectory.Pose(1.25)));
+      EXPECT_EQ(line, FormatTumLine(cfg.start_ns + 250 * 5000000LL, world.trajectory.Pose(1.25)));
     }
     ++rows;
   }

@@ -36,6 +36,9 @@ double Num(const std::string& json, const std::string& object, const std::string
 }
 
 TEST(JsInterop, McapDecodedByFoxgloveMatchesFieldByField) {
+  if (std::string(PPF_JS_DIR).empty())
+    GTEST_SKIP() << "PPF_JS_DIR not set (configure with -DPPF_JS_DIR=<workspace>/test/js, as "
+                    "scripts/setup.sh does)";
   const fs::path js = fs::path(PPF_JS_DIR);
   if (!fs::exists(js / "mcap_dump.mjs") || !fs::exists(js / "node_modules"))
     GTEST_SKIP() << "test/js or its node_modules missing (npm ci --prefix test/js)";

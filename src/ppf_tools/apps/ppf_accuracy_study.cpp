@@ -19,9 +19,9 @@
 #include <string>
 #include <vector>
 
-#include "ppf_core/evaluation.hpp"
 #include "ppf_tools/scan_stats.hpp"
 #include "ppf_tools/study.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 
 #ifndef PPF_DEFAULT_CONFIG_DIR
 #define PPF_DEFAULT_CONFIG_DIR "config"

@@ -1,5 +1,5 @@
 // ppf_eval: APE / RPE of a trajectory against a reference, computed as evo does (see
-// ppf_core/evaluation.hpp), printed as an evo-like table.
+// ppf_trajectory/evaluation.hpp), printed as an evo-like table.
 //
 //   ppf_eval ape --ref gt.tum --est traj.tum [--align se3|sim3|posyaw|none] [--max-diff 0.01]
 //                [--offset 0.0] [--ref-format tum|kitti] [--est-format tum|kitti]
@@ -19,7 +19,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "ppf_core/evaluation.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 
 namespace {
 

@@ -16,10 +16,10 @@
 
 #include "ppf_bag/bag.hpp"
 #include "ppf_core/config.hpp"
-#include "ppf_core/evaluation.hpp"
 #include "ppf_core/lio_ppf.hpp"
 #include "ppf_tools/offline_runner.hpp"
 #include "ppf_tools/scan_stats.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 
 namespace {
 

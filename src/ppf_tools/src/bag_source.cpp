@@ -1,8 +1,8 @@
 #include "ppf_tools/bag_source.hpp"
 
 #include "ppf_bag/bag.hpp"
-#include "ppf_bridge/cdr.hpp"
 #include "ppf_bridge/convert.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
 
 namespace ppf::tools {
 namespace {
@@ -46,7 +46,7 @@ BagSourceStats StreamBag(const std::string& bag_path, const BagSourceOptions& op
   };
   while (reader.Next(msg)) {
     if (msg.topic == stats.imu_topic) {
-      if (!bridge::DecodeCdr(msg.data, &imu, &error)) {
+      if (!msgs::DecodeCdr(msg.data, &imu, &error)) {
         report("IMU message at " + std::to_string(msg.timestamp_ns) + " ns: " + error);
         continue;
       }
@@ -58,7 +58,7 @@ BagSourceStats StreamBag(const std::string& bag_path, const BagSourceOptions& op
       ++stats.imu;
       if (cb.on_imu) cb.on_imu(*sample);
     } else {
-      if (!bridge::DecodeCdr(msg.data, &cloud, &error)) {
+      if (!msgs::DecodeCdr(msg.data, &cloud, &error)) {
         report("PointCloud2 at " + std::to_string(msg.timestamp_ns) + " ns: " + error);
         continue;
       }

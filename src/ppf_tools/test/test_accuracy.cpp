@@ -11,10 +11,10 @@
 #include <string>
 
 #include "ppf_core/config.hpp"
-#include "ppf_core/evaluation.hpp"
 #include "ppf_tools/offline_runner.hpp"
 #include "ppf_tools/scan_stats.hpp"
 #include "ppf_tools/study.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 
 #ifndef PPF_SIM_EXE
 #define PPF_SIM_EXE "ppf_sim"

@@ -1,24 +1,19 @@
 // ROS 2 message <-> core conversions. The core never sees a generated type; the DDS node, the
 // offline runner and the simulator all go through these functions, so a convention (time base,
-// covariance layout, frame names) is decided in exactly one place.
+// covariance layout, frame names) is decided in exactly one place. Stamps convert through
+// ppf_msgs_cdr/time.hpp.
 #pragma once
 
 #include <cstdint>
 #include <optional>
 #include <string>
 
-#include "builtin_interfaces/msg/Time.h"
 #include "ppf_core/cloud_view.hpp"
 #include "ppf_core/imu_sample.hpp"
 #include "sensor_msgs/msg/Imu.h"
 #include "sensor_msgs/msg/PointCloud2.h"
 
 namespace ppf::bridge {
-
-double ToSeconds(const builtin_interfaces::msg::Time& t);
-int64_t ToNanoseconds(const builtin_interfaces::msg::Time& t);
-builtin_interfaces::msg::Time TimeFromNanoseconds(int64_t ns);
-builtin_interfaces::msg::Time TimeFromSeconds(double s);
 
 // A view into `msg` (no copy of the point data): `msg` must outlive the view. Fails, with the
 // reason in `error`, for a layout that cannot be read as declared: an unknown PointField datatype,

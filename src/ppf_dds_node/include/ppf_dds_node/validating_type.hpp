@@ -9,8 +9,8 @@
 #include <fastdds/rtps/common/SerializedPayload.h>
 #include <fastdds/dds/topic/TopicDataType.hpp>
 
-#include "ppf_bridge/cdr_payload.hpp"
-#include "ppf_bridge/msg_traits.hpp"
+#include "ppf_msgs_cdr/cdr_payload.hpp"
+#include "ppf_msgs_cdr/msg_traits.hpp"
 
 namespace ppf::dds {
 
@@ -26,13 +26,13 @@ template <typename MsgT>
 class ValidatingPubSubType : public eprosima::fastdds::dds::TopicDataType {
  public:
   ValidatingPubSubType() {
-    setName(bridge::MsgTraits<MsgT>::kDdsName);
+    setName(msgs::MsgTraits<MsgT>::kDdsName);
     m_typeSize = 4096;  // initial buffer only; histories grow on demand
     m_isGetKeyDefined = false;
   }
 
   bool serialize(void* data, eprosima::fastrtps::rtps::SerializedPayload_t* payload) override {
-    typename bridge::MsgTraits<MsgT>::PubSubType generated;
+    typename msgs::MsgTraits<MsgT>::PubSubType generated;
     return generated.serialize(&static_cast<Validated<MsgT>*>(data)->msg, payload);
   }
 
@@ -40,12 +40,12 @@ class ValidatingPubSubType : public eprosima::fastdds::dds::TopicDataType {
     auto* out = static_cast<Validated<MsgT>*>(data);
     out->payload_size = payload->length;
     out->error.clear();
-    out->valid = bridge::DecodeCdrPayload(payload, &out->msg, &out->error);
+    out->valid = msgs::DecodeCdrPayload(payload, &out->msg, &out->error);
     return true;  // delivered either way; the listener decides
   }
 
   std::function<uint32_t()> getSerializedSizeProvider(void* data) override {
-    typename bridge::MsgTraits<MsgT>::PubSubType generated;
+    typename msgs::MsgTraits<MsgT>::PubSubType generated;
     return generated.getSerializedSizeProvider(&static_cast<Validated<MsgT>*>(data)->msg);
   }
 

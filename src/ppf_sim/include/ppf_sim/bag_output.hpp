@@ -1,4 +1,4 @@
-// The thin serialization layer: scans and IMU samples to ROS 2 CDR (through ppf_bridge) and
+// The thin serialization layer: scans and IMU samples to ROS 2 CDR (through ppf_msgs_cdr) and
 // into a rosbag2 directory (through ppf_bag). No generated message type appears here, so users
 // of the generator do not compile against Fast DDS headers.
 #pragma once

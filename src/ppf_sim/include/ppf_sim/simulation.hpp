@@ -44,7 +44,4 @@ struct SimSummary {
 // Progress and a timing table go to `log`.
 SimSummary RunSimulation(const SimConfig& cfg, std::ostream& log);
 
-// TUM line "t x y z qx qy qz qw" with t printed exactly from integer nanoseconds.
-std::string TumLine(int64_t stamp_ns, const Eigen::Isometry3d& T);
-
 }  // namespace ppf::sim

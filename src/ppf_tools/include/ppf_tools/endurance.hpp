@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "ppf_core/evaluation.hpp"
 #include "ppf_core/lio_ppf.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 
 namespace ppf::tools {
 

@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "ppf_core/evaluation.hpp"
 #include "ppf_core/lio_ppf.hpp"
 #include "ppf_tools/bag_source.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 
 namespace ppf::tools {
 

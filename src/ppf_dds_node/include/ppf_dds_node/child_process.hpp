@@ -1,5 +1,6 @@
-// fork+exec of helper binaries for cross-process tests, with bounded waits: a test must fail,
-// never hang, and never leave a child behind.
+// fork+exec of helper binaries with bounded waits, for the cross-process tests and for
+// ppf_latency_bench (it starts the node it measures): a caller must fail, never hang, and never
+// leave a child behind.
 #pragma once
 
 #include <fcntl.h>
@@ -16,7 +17,7 @@
 #include <utility>
 #include <vector>
 
-namespace ppf::test {
+namespace ppf::dds {
 
 class ChildProcess {
  public:
@@ -150,15 +151,4 @@ inline bool ExitedWith(int status, int code) {
   return status >= 0 && WIFEXITED(status) && WEXITSTATUS(status) == code;
 }
 
-// Domain id unique to this test process, in 1..100. Domain d's well-known ports start at
-// 7400 + 250 d: above ~101 they fall into Linux's ephemeral port range (32768-60999), where any
-// process's outgoing socket can hold a participant's discovery port, so participants take higher
-// ids than the loopback initial peers cover and never discover each other (ROS 2 documents 0-101
-// as the safe range on Linux). The e2e tests' "recorder never matched the node" failures (twice in
-// ~8 CI runs) are consistent with that; with ids up to 200 half the runs were exposed.
-inline int TestDomainId(int salt = 0) {
-  return 1 + static_cast<int>((static_cast<unsigned>(getpid()) * 7u + static_cast<unsigned>(salt)) %
-                              100u);
-}
-
-}  // namespace ppf::test
+}  // namespace ppf::dds

@@ -7,9 +7,9 @@
 
 #include <fastdds/rtps/common/SerializedPayload.h>
 
-#include "ppf_bridge/msg_traits.hpp"
+#include "ppf_msgs_cdr/msg_traits.hpp"
 
-namespace ppf::bridge {
+namespace ppf::msgs {
 
 namespace detail {
 bool DeserializePayload(eprosima::fastdds::dds::TopicDataType& type,
@@ -25,4 +25,4 @@ bool DecodeCdrPayload(eprosima::fastrtps::rtps::SerializedPayload_t* payload, Ms
   return detail::DeserializePayload(type, payload, out, error);
 }
 
-}  // namespace ppf::bridge
+}  // namespace ppf::msgs

@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "ppf_bridge/msg_traits.hpp"
+#include "ppf_msgs_cdr/msg_traits.hpp"
 
-namespace ppf::bridge {
+namespace ppf::msgs {
 
 namespace detail {
 bool Serialize(eprosima::fastdds::dds::TopicDataType& type, void* msg, std::vector<uint8_t>* out);
@@ -44,4 +44,4 @@ bool DecodeCdr(const std::vector<uint8_t>& payload, MsgT* out, std::string* erro
   return DecodeCdr(payload.data(), payload.size(), out, error);
 }
 
-}  // namespace ppf::bridge
+}  // namespace ppf::msgs

@@ -1,12 +1,12 @@
-#include "ppf_bridge/cdr.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
 
-#include "ppf_bridge/cdr_payload.hpp"
+#include "ppf_msgs_cdr/cdr_payload.hpp"
 
 #include <algorithm>
 
 #include <fastdds/rtps/common/SerializedPayload.h>
 
-namespace ppf::bridge::detail {
+namespace ppf::msgs::detail {
 
 using eprosima::fastrtps::rtps::SerializedPayload_t;
 
@@ -32,4 +32,4 @@ bool Deserialize(eprosima::fastdds::dds::TopicDataType& type, const uint8_t* dat
   return DeserializePayload(type, &payload, msg, error);
 }
 
-}  // namespace ppf::bridge::detail
+}  // namespace ppf::msgs::detail

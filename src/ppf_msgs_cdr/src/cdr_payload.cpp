@@ -1,8 +1,8 @@
-#include "ppf_bridge/cdr_payload.hpp"
+#include "ppf_msgs_cdr/cdr_payload.hpp"
 
 #include <exception>
 
-namespace ppf::bridge::detail {
+namespace ppf::msgs::detail {
 
 bool DeserializePayload(eprosima::fastdds::dds::TopicDataType& type,
                         eprosima::fastrtps::rtps::SerializedPayload_t* payload, void* msg,
@@ -28,4 +28,4 @@ bool DeserializePayload(eprosima::fastdds::dds::TopicDataType& type,
   return true;
 }
 
-}  // namespace ppf::bridge::detail
+}  // namespace ppf::msgs::detail

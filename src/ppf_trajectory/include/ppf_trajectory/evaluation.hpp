@@ -13,31 +13,15 @@
 
 #include <cstddef>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "ppf_trajectory/trajectory_io.hpp"
+
 namespace ppf {
-
-struct StampedPose {
-  double stamp_s = 0.0;
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  // T_world_body
-};
-using Trajectory = std::vector<StampedPose>;
-
-// TUM: "stamp tx ty tz qx qy qz qw" per line, '#' comments. Returns false and sets *error on
-// a malformed line (line number included).
-bool ReadTum(const std::string& path, Trajectory* traj, std::string* error);
-bool ParseTum(const std::string& text, Trajectory* traj, std::string* error);
-bool WriteTum(const std::string& path, const Trajectory& traj);
-std::string FormatTumLine(const StampedPose& pose);
-
-// KITTI: 12 numbers per line (row-major 3x4). No stamps in the format: stamp = line index unless
-// `stamps` (one per pose) is given.
-bool ReadKitti(const std::string& path, Trajectory* traj, std::string* error);
-bool ParseKitti(const std::string& text, Trajectory* traj, std::string* error);
-bool WriteKitti(const std::string& path, const Trajectory& traj);
 
 enum class Alignment { kNone, kSE3, kSim3, kPosYaw };
 

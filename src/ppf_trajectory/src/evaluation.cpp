@@ -1,137 +1,13 @@
-#include "ppf_core/evaluation.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <sstream>
 
 #include <Eigen/SVD>
 
 namespace ppf {
-namespace {
-
-bool ReadFile(const std::string& path, std::string* text, std::string* error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    if (error) *error = "cannot open " + path;
-    return false;
-  }
-  std::ostringstream os;
-  os << in.rdbuf();
-  *text = os.str();
-  return true;
-}
-
-// Splits into numbers; false if a token is not a number.
-bool ParseNumbers(const std::string& line, std::vector<double>* v) {
-  v->clear();
-  std::istringstream is(line);
-  std::string tok;
-  while (is >> tok) {
-    char* end = nullptr;
-    const double x = std::strtod(tok.c_str(), &end);
-    if (end == tok.c_str() || *end != '\0' || !std::isfinite(x)) return false;
-    v->push_back(x);
-  }
-  return true;
-}
-
-}  // namespace
-
-bool ParseTum(const std::string& text, Trajectory* traj, std::string* error) {
-  traj->clear();
-  std::istringstream is(text);
-  std::string line;
-  std::vector<double> v;
-  for (int n = 1; std::getline(is, line); ++n) {
-    const size_t first = line.find_first_not_of(" \t\r");
-    if (first == std::string::npos || line[first] == '#') continue;
-    if (!ParseNumbers(line, &v) || v.size() != 8) {
-      if (error) *error = "TUM line " + std::to_string(n) + ": expected 8 numbers";
-      return false;
-    }
-    Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
-    if (q.norm() < 1e-9) {
-      if (error) *error = "TUM line " + std::to_string(n) + ": zero quaternion";
-      return false;
-    }
-    StampedPose p;
-    p.stamp_s = v[0];
-    p.T.linear() = q.normalized().toRotationMatrix();
-    p.T.translation() = Eigen::Vector3d(v[1], v[2], v[3]);
-    traj->push_back(p);
-  }
-  return true;
-}
-
-bool ReadTum(const std::string& path, Trajectory* traj, std::string* error) {
-  std::string text;
-  return ReadFile(path, &text, error) && ParseTum(text, traj, error);
-}
-
-std::string FormatTumLine(const StampedPose& pose) {
-  const Eigen::Quaterniond q(pose.T.linear());
-  const Eigen::Vector3d t = pose.T.translation();
-  char buf[256];
-  std::snprintf(buf, sizeof(buf), "%.9f %.9g %.9g %.9g %.9g %.9g %.9g %.9g", pose.stamp_s, t.x(),
-                t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
-  return buf;
-}
-
-bool WriteTum(const std::string& path, const Trajectory& traj) {
-  std::ofstream out(path);
-  if (!out) return false;
-  out << "# timestamp tx ty tz qx qy qz qw\n";
-  for (const StampedPose& p : traj) out << FormatTumLine(p) << '\n';
-  return static_cast<bool>(out);
-}
-
-bool ParseKitti(const std::string& text, Trajectory* traj, std::string* error) {
-  traj->clear();
-  std::istringstream is(text);
-  std::string line;
-  std::vector<double> v;
-  for (int n = 1; std::getline(is, line); ++n) {
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    if (!ParseNumbers(line, &v) || v.size() != 12) {
-      if (error) *error = "KITTI line " + std::to_string(n) + ": expected 12 numbers";
-      return false;
-    }
-    StampedPose p;
-    p.stamp_s = static_cast<double>(traj->size());
-    Eigen::Matrix3d R;
-    R << v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10];
-    // Files carry rounded rotations: project onto SO(3).
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    R = svd.matrixU() * svd.matrixV().transpose();
-    p.T.linear() = R;
-    p.T.translation() = Eigen::Vector3d(v[3], v[7], v[11]);
-    traj->push_back(p);
-  }
-  return true;
-}
-
-bool ReadKitti(const std::string& path, Trajectory* traj, std::string* error) {
-  std::string text;
-  return ReadFile(path, &text, error) && ParseKitti(text, traj, error);
-}
-
-bool WriteKitti(const std::string& path, const Trajectory& traj) {
-  std::ofstream out(path);
-  if (!out) return false;
-  char buf[64];
-  for (const StampedPose& p : traj) {
-    const Eigen::Matrix4d m = p.T.matrix();
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 4; ++c) {
-        std::snprintf(buf, sizeof(buf), "%.9e", m(r, c));
-        out << buf << ((r == 2 && c == 3) ? '\n' : ' ');
-      }
-    }
-  }
-  return static_cast<bool>(out);
-}
 
 ErrorStats ComputeStats(const std::vector<double>& e) {
   ErrorStats s;

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "ppf_core/evaluation.hpp"
+#include "ppf_trajectory/evaluation.hpp"
 
 namespace ppf {
 namespace {

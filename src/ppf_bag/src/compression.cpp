@@ -106,8 +106,26 @@ std::vector<uint8_t> Decompress(const std::string& algorithm, const uint8_t* dat
     }
     return std::vector<uint8_t>(data, data + size);
   }
-  if (algorithm == "lz4") return Lz4Decompress(data, size, uncompressed_size);
-  if (algorithm == "zstd") return ZstdDecompress(data, size, uncompressed_size);
+  // The output buffer is allocated from the declared size before a byte is inflated, so the
+  // size is first held against the most either format can encode in `size` bytes: an LZ4 sequence
+  // grows by at most 255 bytes per input byte; a zstd block has a 3-byte header and inflates to at
+  // most 128 KiB. A corrupt field (found by fuzz_bag_mcap) is then an error, not an allocation of
+  // gigabytes.
+  const auto refuse_ratio = [&](uint64_t most) {
+    if (uncompressed_size > most) {
+      throw BagError(algorithm + " chunk declares " + std::to_string(uncompressed_size) +
+                     " uncompressed bytes, more than " + std::to_string(size) +
+                     " compressed bytes can hold");
+    }
+  };
+  if (algorithm == "lz4") {
+    refuse_ratio(256 * uint64_t(size) + 4096);
+    return Lz4Decompress(data, size, uncompressed_size);
+  }
+  if (algorithm == "zstd") {
+    refuse_ratio((uint64_t(128) << 10) * (uint64_t(size) / 3 + 1));
+    return ZstdDecompress(data, size, uncompressed_size);
+  }
   throw BagError("unsupported chunk compression '" + algorithm + "'");
 }
 

@@ -186,5 +186,23 @@ class ScanDump(unittest.TestCase):
         self.assertGreater(float((dist < 0.2).mean()), 0.5, f"median {np.median(dist):.3f} m")
 
 
+class PlotData(unittest.TestCase):
+    def test_error_over_distance_is_the_error_ppf_eval_scores(self):
+        # The trajectory and error plots align the estimate themselves (Umeyama SE(3)); their
+        # errors' RMSE must be ppf_eval's SE(3) APE of the same files.
+        import numpy as np
+        runs = os.path.join(REPORT, "runs")
+        for seq in sorted(os.listdir(runs)):
+            for mode in R.MODES:
+                with open(os.path.join(runs, seq, f"{mode}_ape_se3.txt")) as f:
+                    text = f.read()
+                cmd = text.splitlines()[0].split()
+                ref, est = cmd[cmd.index("--ref") + 1], cmd[cmd.index("--est") + 1]
+                _, _, err, dist = R.aligned_errors(ref, est)
+                self.assertAlmostEqual(float(np.sqrt((err ** 2).mean())), R.parse_eval_rmse(text),
+                                       delta=1e-5, msg=f"{seq} {mode}")
+                self.assertTrue(np.all(np.diff(dist) >= 0))
+
+
 if __name__ == "__main__":
     unittest.main(argv=[sys.argv[0], "-v"])

@@ -17,6 +17,7 @@ cd "$ROOT"
 # and fuzzing stages of scripts/test.sh (scripts/sanitize.sh, scripts/fuzz.sh).
 # python3-rosbag and python3-sensor-msgs (Debian's ROS 1 Python, for /usr/bin/python3) are the
 # independent ROS 1 bag writer of ppf_bag's ROS 1 reader tests.
+# python3-matplotlib (for /usr/bin/python3) draws the plots of scripts/ppf_report.py.
 PPF_DEBIAN_PACKAGES=(
   build-essential cmake pkg-config git ca-certificates
   colcon python3-colcon-cmake python3-colcon-package-selection python3-colcon-test-result
@@ -28,7 +29,7 @@ PPF_DEBIAN_PACKAGES=(
   libyaml-cpp-dev libsqlite3-dev sqlite3 liblz4-dev libzstd-dev libbz2-dev
   cyclonedds-dev cyclonedds-tools
   python3-yaml nodejs npm
-  python3-rosbag python3-sensor-msgs
+  python3-rosbag python3-sensor-msgs python3-matplotlib
   clang libclang-rt-14-dev
 )
 

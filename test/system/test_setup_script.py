@@ -33,7 +33,7 @@ class SetupScriptTest(unittest.TestCase):
         for pkg in ("libfastrtps-dev", "fastddsgen", "libfastcdr-dev", "libpcl-dev", "libeigen3-dev",
                     "colcon", "libgtest-dev", "libyaml-cpp-dev", "libsqlite3-dev", "liblz4-dev",
                     "libzstd-dev", "libbz2-dev", "cyclonedds-dev", "python3-rosbag",
-                    "python3-sensor-msgs"):
+                    "python3-sensor-msgs", "python3-matplotlib"):
             self.assertIn(pkg, listed)
 
     def test_second_run_installs_nothing(self):

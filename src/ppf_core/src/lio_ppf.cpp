@@ -231,7 +231,10 @@ struct LioPpf::Impl {
     r->T_world_lidar = r->T_world_imu * config.T_imu_lidar;
     r->velocity_world = R * state.v_world;
     r->angular_velocity = gyro_at_scan_end - state.gyro_bias;
-    if (config.output_deskewed_points) r->deskewed_points_lidar = frame.points_lidar;
+    if (config.output_deskewed_points) {
+      r->deskewed_points_lidar = frame.points_lidar;
+      r->deskewed_point_labels = frame.labels;
+    }
     r->gyro_bias = state.gyro_bias;
     r->acc_bias = state.acc_bias;
     r->gravity_map = state.gravity_world;

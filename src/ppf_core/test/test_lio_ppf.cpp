@@ -192,8 +192,16 @@ TEST(LioPpf, ResultCarriesAngularRateAndDeskewedPointsOnRequest) {
         ASSERT_GT(w.z(), -2.05) << w.transpose();
         ASSERT_LT(w.z(), 4.05) << w.transpose();
       }
+      // One label per point, and they add up to the result's own counts.
+      ASSERT_EQ(r.deskewed_point_labels.size(), r.deskewed_points_lidar.size());
+      size_t counts[3] = {0, 0, 0};
+      for (const PointLabel l : r.deskewed_point_labels) ++counts[static_cast<int>(l)];
+      EXPECT_EQ(counts[static_cast<int>(PointLabel::kScattered)], r.scattered_points);
+      EXPECT_EQ(counts[static_cast<int>(PointLabel::kSkeleton)], r.skeleton_points);
+      EXPECT_EQ(counts[static_cast<int>(PointLabel::kDiscarded)], r.discarded_points);
     } else {
       EXPECT_TRUE(r.deskewed_points_lidar.empty());
+      EXPECT_TRUE(r.deskewed_point_labels.empty());
     }
   }
 }

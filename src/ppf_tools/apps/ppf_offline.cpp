@@ -8,11 +8,15 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <string>
 #include <vector>
+
+#include <Eigen/Eigenvalues>
 
 #include "ppf_bag/bag.hpp"
 #include "ppf_core/config.hpp"
@@ -42,6 +46,14 @@ Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) or a ROS 1 .bag wi
   --points-topic NAME   PointCloud2 topic (default: the first one in the bag)
   --imu-topic NAME      Imu topic (default: the first one in the bag)
   --threads N           OpenMP threads for the core (default: config, else all cores)
+  --dump-scan N         write scan N's registered points and skeleton planes (N counts every
+                        scan result in bag order from 0; the scan must have a pose) to
+                        --dump-dir: scan_points.csv (x,y,z world frame, PPF label),
+                        scan_planes.csv (the skeleton-plane window after the scan: normal,
+                        offset, centroid, in-plane axes with half extents) and scan_info.csv
+                        (stamp, status, T_world_lidar). Adds one copy of each scan's points
+                        to the loop
+  --dump-dir DIR        where --dump-scan writes (created; default: .)
   --quiet               no progress bar and no per-run summary
   -h, --help            this text
 
@@ -51,8 +63,9 @@ Exit status: 0 on success, 1 on a bad bag/config/argument, 2 if no scan produced
 struct Args {
   std::vector<std::string> configs;
   std::string bag, mode, out = "trajectory.tum", format = "tum", frame = "imu", stats, planes,
-      points_topic, imu_topic;
+      points_topic, imu_topic, dump_dir = ".";
   int threads = -1;
+  long dump_scan = -1;
   bool quiet = false;
 };
 
@@ -94,6 +107,13 @@ Args ParseArgs(int argc, char** argv) {
       a.imu_topic = value(i);
     } else if (arg == "--threads") {
       a.threads = std::atoi(value(i).c_str());
+    } else if (arg == "--dump-scan") {
+      const std::string v = value(i);
+      char* end = nullptr;
+      a.dump_scan = std::strtol(v.c_str(), &end, 10);
+      if (v.empty() || *end != '\0' || a.dump_scan < 0) Fail("--dump-scan needs a scan index >= 0");
+    } else if (arg == "--dump-dir") {
+      a.dump_dir = value(i);
     } else if (arg == "--quiet") {
       a.quiet = true;
     } else {
@@ -105,6 +125,61 @@ Args ParseArgs(int argc, char** argv) {
   if (a.format != "tum" && a.format != "kitti") Fail("--format must be tum or kitti");
   if (a.frame != "imu" && a.frame != "lidar") Fail("--frame must be imu or lidar");
   return a;
+}
+
+const char* LabelName(ppf::PointLabel l) {
+  switch (l) {
+    case ppf::PointLabel::kSkeleton: return "skeleton";
+    case ppf::PointLabel::kDiscarded: return "discarded";
+    case ppf::PointLabel::kScattered: break;
+  }
+  return "scattered";
+}
+
+// One scan as the paper's Fig. 1 shows it: its points in the world with their PPF label, and the
+// skeleton planes as rectangles (centroid, two in-plane axes, half extents of a uniform patch with
+// the inliers' spread: sqrt(3) standard deviations).
+void DumpScan(const std::string& dir, size_t index, const ppf::ScanResult& r, bool ppf_mode) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) Fail("cannot create " + dir + ": " + ec.message());
+  const auto path = [&](const char* name) { return (std::filesystem::path(dir) / name).string(); };
+  std::ofstream info(path("scan_info.csv"));
+  std::ofstream pts(path("scan_points.csv"));
+  std::ofstream planes(path("scan_planes.csv"));
+  if (!info || !pts || !planes) Fail("cannot write into " + dir);
+  const Eigen::Quaterniond q(r.T_world_lidar.linear());
+  const Eigen::Vector3d t = r.T_world_lidar.translation();
+  info << "index,stamp,status,mode,points,planes,x,y,z,qx,qy,qz,qw\n"
+       << index << ',' << std::fixed << std::setprecision(6) << r.stamp_s << ','
+       << ppf::StatusName(r.status) << ',' << (ppf_mode ? "ppf" : "knn") << ','
+       << r.deskewed_points_lidar.size() << ',' << r.skeleton_planes.size() << ',' << t.x() << ','
+       << t.y() << ',' << t.z() << ',' << std::setprecision(9) << q.x() << ',' << q.y() << ','
+       << q.z() << ',' << q.w() << '\n';
+  pts << "x,y,z,label\n" << std::fixed << std::setprecision(4);
+  for (size_t i = 0; i < r.deskewed_points_lidar.size(); ++i) {
+    const Eigen::Vector3d w = r.T_world_lidar * r.deskewed_points_lidar[i].cast<double>();
+    const ppf::PointLabel l = i < r.deskewed_point_labels.size() ? r.deskewed_point_labels[i]
+                                                                 : ppf::PointLabel::kScattered;
+    pts << w.x() << ',' << w.y() << ',' << w.z() << ',' << LabelName(l) << '\n';
+  }
+  planes << "track_id,fitted,age,hits,nx,ny,nz,d,cx,cy,cz,inliers,ux,uy,uz,u_half,vx,vy,vz,v_half\n"
+         << std::setprecision(6);
+  for (const auto& sp : r.skeleton_planes) {
+    const double n = std::max(1, sp.num_inliers);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(sp.scatter / n);
+    // Ascending eigenvalues: [0] across the plane, [2] its longest in-plane axis.
+    const Eigen::Vector3d u = es.eigenvectors().col(2), v = es.eigenvectors().col(1);
+    const double u_half = std::sqrt(3.0 * std::max(0.0, es.eigenvalues()(2)));
+    const double v_half = std::sqrt(3.0 * std::max(0.0, es.eigenvalues()(1)));
+    planes << sp.track_id << ',' << (sp.missed_scans == 0 ? 1 : 0) << ',' << sp.age << ','
+           << sp.hits << ',' << sp.plane.n.x() << ',' << sp.plane.n.y() << ',' << sp.plane.n.z()
+           << ',' << sp.plane.d << ',' << sp.centroid.x() << ',' << sp.centroid.y() << ','
+           << sp.centroid.z() << ',' << sp.num_inliers << ',' << u.x() << ',' << u.y() << ','
+           << u.z() << ',' << u_half << ',' << v.x() << ',' << v.y() << ',' << v.z() << ','
+           << v_half << '\n';
+  }
+  if (!info || !pts || !planes) Fail("cannot write into " + dir);
 }
 
 class ProgressBar {
@@ -147,6 +222,7 @@ int main(int argc, char** argv) {
   if (args.mode == "knn") config.mode = ppf::Mode::kKnn;
   if (args.mode == "ppf") config.mode = ppf::Mode::kPpf;
   if (args.threads >= 0) config.num_threads = args.threads;
+  if (args.dump_scan >= 0) config.output_deskewed_points = true;
   config.log = [](ppf::LogLevel level, const std::string& msg) {
     if (level >= ppf::LogLevel::kInfo) std::cerr << "\nppf_offline: " << msg << "\n";
   };
@@ -166,6 +242,24 @@ int main(int argc, char** argv) {
     progress.Update(done, total, core_ms > 0 ? 1000.0 * static_cast<double>(done) / core_ms : 0.0);
   };
   options.on_error = [](const std::string& e) { std::cerr << "\nppf_offline: skipped " << e << "\n"; };
+  std::string dump_error = args.dump_scan >= 0 ? "no scan " + std::to_string(args.dump_scan) +
+                                                     " in the bag"
+                                               : "";
+  if (args.dump_scan >= 0) {
+    options.on_result = [&](size_t index, ppf::ScanResult* r) {
+      if (static_cast<long>(index) == args.dump_scan) {
+        if (r->pose_valid) {
+          DumpScan(args.dump_dir, index, *r, config.mode == ppf::Mode::kPpf);
+          dump_error.clear();
+        } else {
+          dump_error = "scan " + std::to_string(index) + " has no pose (" +
+                       ppf::StatusName(r->status) + "): nothing dumped";
+        }
+      }
+      r->deskewed_points_lidar = {};
+      r->deskewed_point_labels = {};
+    };
+  }
 
   ppf::tools::OfflineRun run;
   try {
@@ -224,5 +318,6 @@ int main(int argc, char** argv) {
       }
     }
   }
+  if (!dump_error.empty()) Fail("--dump-scan: " + dump_error);
   return trajectory.empty() ? 2 : 0;
 }

@@ -17,6 +17,7 @@ OfflineRun RunOffline(const std::string& bag_path, const Config& config,
       if (r.pose_valid) {
         run.trajectory.push_back({r.stamp_s, options.lidar_frame ? r.T_world_lidar : r.T_world_imu});
       }
+      if (options.on_result) options.on_result(run.results.size(), &r);
       run.results.push_back(std::move(r));
     }
     if (options.on_progress) options.on_progress(run.results.size(), total_scans, core_ms);

@@ -136,6 +136,9 @@ struct ScanResult {
   // Config::output_deskewed_points: the points this scan was registered with (range-filtered,
   // downsampled, de-skewed to stamp_s), LiDAR frame; T_world_lidar places them in the world.
   std::vector<Eigen::Vector3f> deskewed_points_lidar;
+  // Same switch, same order: each point's PPF label (all kScattered in kKnn mode and in the scan
+  // that initializes the map), so a plot can show the skeleton points next to their planes.
+  std::vector<PointLabel> deskewed_point_labels;
 
   int iterations = 0;
   bool converged = false;

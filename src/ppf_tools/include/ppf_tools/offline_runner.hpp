@@ -26,6 +26,9 @@ struct OfflineOptions {
   std::function<void(size_t, uint64_t, double)> on_progress;
   std::function<void(const BagSourceStats&)> on_topics_resolved;
   std::function<void(const std::string&)> on_error;  // malformed message skipped
+  // Called with each result (index in bag order from 0) before it is stored: e.g. to write one
+  // scan's points and drop the others' so a long run does not keep every cloud.
+  std::function<void(size_t, ScanResult*)> on_result;
 };
 
 // Throws ppf::bag::BagError if the bag cannot be read.

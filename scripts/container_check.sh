@@ -7,6 +7,7 @@
 #
 #   scripts/container_check.sh [--keep] [--record-seconds S]
 #
+# Environment: PPF_BUILD_JOBS bounds the image build's compile jobs (default: all cores).
 # Prints build time, image size and the odometry count; exits non-zero if the image does not
 # build, a container fails, or no odometry arrives. --keep leaves the compose services running.
 set -euo pipefail
@@ -81,7 +82,8 @@ fi
 # --- build ------------------------------------------------------------------------------------
 log "building docker/Dockerfile as lio-ppf:latest"
 t0=$(date +%s)
-as_root podman build --layers -f docker/Dockerfile -t lio-ppf:latest . >/tmp/ppf-image-build.log 2>&1 ||
+as_root podman build --layers --build-arg PPF_BUILD_JOBS="${PPF_BUILD_JOBS:-}" \
+  -f docker/Dockerfile -t lio-ppf:latest . >/tmp/ppf-image-build.log 2>&1 ||
   { tail -30 /tmp/ppf-image-build.log >&2; die "image build failed: /tmp/ppf-image-build.log"; }
 build_s=$(( $(date +%s) - t0 ))
 size_b=$(as_root podman image inspect lio-ppf:latest --format '{{.Size}}')

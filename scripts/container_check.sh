@@ -2,8 +2,13 @@
 # Builds docker/Dockerfile with a real engine (rootful podman: a Docker daemon cannot run on these
 # machines) and runs docker/compose.yaml's scenario (ppf_node + a replay of a simulated sequence),
 # then records the node's odometry from a third container and counts it. From a fresh Debian 12
-# machine: installs podman, runc, podman-compose and debootstrap, and makes the debian:12 base
+# machine: installs podman, runc, docker-compose and debootstrap, and makes the debian:12 base
 # image locally with debootstrap (no registry is reachable here).
+#
+# The compose file is run by docker-compose talking to podman's Docker-compatible API socket,
+# which is how the Docker engines users have read it. Debian 12's podman-compose (1.0.3) cannot
+# run it: it adds a default network next to `network_mode: host`, which podman refuses
+# (containers/podman-compose issues 397 and 961).
 #
 #   scripts/container_check.sh [--keep] [--record-seconds S]
 #
@@ -33,7 +38,7 @@ as_root() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
 
 # --- engine -----------------------------------------------------------------------------------
 need=()
-for p in podman runc debootstrap podman-compose; do
+for p in podman runc debootstrap docker-compose; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || need+=("$p")
 done
 if [ ${#need[@]} -gt 0 ]; then
@@ -98,30 +103,36 @@ done
 as_root podman run --rm lio-ppf:latest ppf_node --help >/dev/null 2>&1 || die "ppf_node --help fails in the image"
 
 # --- compose scenario -------------------------------------------------------------------------
-# podman-compose reads the same file `docker compose` v2 does.
-compose=(as_root podman-compose -f docker/compose.yaml)
+sock=/tmp/ppf-podman-$$.sock
+as_root podman system service --time=0 "unix://$sock" >/tmp/ppf-podman-service.log 2>&1 &
+service_pid=$!
+for _ in $(seq 50); do [ -S "$sock" ] && break; sleep 0.2; done
+[ -S "$sock" ] || die "podman system service did not open $sock"
+compose=(as_root env DOCKER_HOST="unix://$sock" docker-compose -p lio-ppf -f docker/compose.yaml)
 cleanup() {
-  [ "$keep" -eq 1 ] && return
-  "${compose[@]}" down >/dev/null 2>&1 || true
+  if [ "$keep" -eq 0 ]; then "${compose[@]}" down -v >/dev/null 2>&1 || true; fi
+  as_root kill "$service_pid" 2>/dev/null || true
+  as_root rm -f "$sock"
 }
 trap cleanup EXIT
+"${compose[@]}" config -q || die "docker-compose refuses docker/compose.yaml"
 log "compose up (node + replay)"
-"${compose[@]}" up -d >/tmp/ppf-compose.log 2>&1 || { cat /tmp/ppf-compose.log >&2; die "compose up failed"; }
+"${compose[@]}" up -d --no-build >/tmp/ppf-compose.log 2>&1 || { cat /tmp/ppf-compose.log >&2; die "compose up failed"; }
 
 rec_dir=$(mktemp -d /tmp/ppf-odom.XXXXXX)
 log "recording /odometry for ${record_s} s from a third container"
 as_root podman run --rm --network host --ipc host -v "$rec_dir:/rec" lio-ppf:latest \
   ppf_record --topics /odometry --out /rec/odom --duration "$record_s" >/tmp/ppf-record.log 2>&1 ||
   { cat /tmp/ppf-record.log >&2; die "ppf_record failed"; }
-info=$(as_root podman run --rm -v "$rec_dir:/rec" lio-ppf:latest ppf_bag_info /rec/odom 2>&1)
-echo "$info"
-count=$(echo "$info" | awk '/\/odometry/ {for (i = 1; i <= NF; i++) if ($i ~ /^[0-9]+$/) {print $i; exit}}')
+count=$(sed -n 's|.*PPF_RECORD_DONE /odometry=\([0-9]*\).*|\1|p' /tmp/ppf-record.log)
 count=${count:-0}
+# What was recorded must also read back from the bag.
+as_root podman run --rm -v "$rec_dir:/rec" lio-ppf:latest ppf_bag_info /rec/odom | grep -E "Messages|/odometry"
 for svc in node replay; do
   state=$(as_root podman ps -a --filter "name=lio-ppf_${svc}_1" --format '{{.Status}}' | head -1)
   log "service $svc: ${state:-not found}"
 done
-as_root podman logs lio-ppf_node_1 2>&1 | tail -5 || true
+as_root podman logs lio-ppf_node_1 2>&1 | grep -E "IMU initialized|status=" | tail -2 || true
 
 echo
 echo "| build time | image size | odometry messages in ${record_s} s |"

@@ -5,8 +5,15 @@
 #   scripts/setup.sh              install what is missing, then build
 #   scripts/setup.sh --deps-only  install only (used by docker/Dockerfile before copying sources)
 #   scripts/setup.sh --no-deps    build only
+#   scripts/setup.sh --runtime-packages
+#                                 print the Debian packages whose shared libraries the built
+#                                 install tree loads (docker/Dockerfile's runtime stage)
+#   scripts/setup.sh --runtime-deps FILE
+#                                 install only the packages FILE lists (one per line), then
+#                                 drop apt's lists: the runtime image
 #
-# Environment: PPF_BUILD_JOBS (default: number of cores) bounds compile parallelism.
+# Environment: PPF_BUILD_JOBS (default: number of cores) bounds compile parallelism;
+# PPF_BUILD_TESTING=OFF builds without the tests (the container image).
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -35,11 +42,18 @@ PPF_DEBIAN_PACKAGES=(
 
 deps=1
 build=1
+action=
 case "${1:-}" in
   --deps-only) build=0 ;;
   --no-deps) deps=0 ;;
+  --runtime-packages) action=runtime-packages ;;
+  --runtime-deps)
+    action=runtime-deps
+    runtime_list="${2:-}"
+    [ -f "$runtime_list" ] || { echo "$0: --runtime-deps needs a package list file" >&2; exit 2; }
+    ;;
   "") ;;
-  *) echo "usage: $0 [--deps-only|--no-deps]" >&2; exit 2 ;;
+  *) echo "usage: $0 [--deps-only|--no-deps|--runtime-packages|--runtime-deps FILE]" >&2; exit 2 ;;
 esac
 
 log() { printf '\033[1m[setup]\033[0m %s\n' "$*"; }
@@ -88,9 +102,48 @@ build_workspace() {
   MAKEFLAGS="-j${jobs}" colcon build \
     --parallel-workers 1 \
     --event-handlers console_cohesion- console_stderr+ \
-    --cmake-args -DCMAKE_BUILD_TYPE=Release -DPPF_JS_DIR="$ROOT/test/js" --no-warn-unused-cli
+    --cmake-args -DCMAKE_BUILD_TYPE=Release -DPPF_JS_DIR="$ROOT/test/js" \
+      -DBUILD_TESTING="${PPF_BUILD_TESTING:-ON}" --no-warn-unused-cli
   log "built: source install/setup.bash to use ppf_node, ppf_sim, ppf_offline, ppf_eval, ..."
 }
+
+list_runtime_packages() {
+  # Every ELF file of the install tree through ldd; libraries outside install/ are mapped to
+  # their Debian package. dpkg knows a file under the path it shipped it at, which on a
+  # merged-/usr system may be the /lib or the /usr/lib spelling: both are tried.
+  [ -d install ] || { echo "$0: no install/ tree: build first" >&2; exit 1; }
+  local libs own
+  own=$(readlink -f install)
+  libs=$(find -L install -type f \( -perm -u+x -o -name '*.so*' \) -print0 |
+           xargs -0 -r ldd 2>/dev/null | awk '$2 == "=>" && $3 ~ /^\// {print $3}' | sort -u)
+  local lib real pkg
+  for lib in $libs; do
+    real=$(readlink -f "$lib")
+    case "$real" in "$own"/*) continue ;; esac
+    pkg=""
+    for candidate in "$lib" "$real" "${lib#/usr}" "/usr$lib" "${real#/usr}" "/usr$real"; do
+      pkg=$(dpkg -S "$candidate" 2>/dev/null | head -1 | cut -d: -f1) && [ -n "$pkg" ] && break
+    done
+    [ -n "$pkg" ] || { echo "$0: no Debian package owns $lib" >&2; exit 1; }
+    echo "$pkg"
+  done | sort -u
+}
+
+install_runtime_packages() {
+  local pkgs
+  mapfile -t pkgs < <(grep -v '^\s*\(#\|$\)' "$runtime_list")
+  log "installing ${#pkgs[@]} runtime packages: ${pkgs[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  as_root apt-get update -qq
+  as_root apt-get install -y -qq --no-install-recommends "${pkgs[@]}" >/dev/null
+  as_root apt-get clean
+  as_root rm -rf /var/lib/apt/lists/*
+}
+
+case "$action" in
+  runtime-packages) list_runtime_packages; exit 0 ;;
+  runtime-deps) install_runtime_packages; exit 0 ;;
+esac
 
 if [ "$deps" -eq 1 ]; then
   install_debian_packages

@@ -1,5 +1,6 @@
-"""The Docker files cannot be built here (no Docker engine on CI machines), so they are checked
-against the set-up script CI runs: same base distribution, same script, nothing fetched around it,
+"""CI machines have no container engine (scripts/container_check.sh builds and runs the image with
+podman outside CI), so the Docker files are checked against the set-up script CI runs: same base
+distribution, same script, nothing fetched around it, a runtime stage that carries no build tree,
 and a compose file with the settings Fast DDS needs in containers."""
 import os
 import re
@@ -41,9 +42,21 @@ class DockerfileTest(unittest.TestCase):
             self.assertTrue(arg, f"{word} without argument")
         self.assertEqual(self.ins[0][0], "FROM")
 
-    def test_base_is_debian_12_like_the_setup_script_expects(self):
-        base = self.ins[0][1]
-        self.assertIn(base, ("debian:12", "debian:bookworm", "debian:12-slim", "debian:bookworm-slim"))
+    def stages(self):
+        """[(base, name, [(INSTRUCTION, argument), ...]), ...] in file order."""
+        out = []
+        for word, arg in self.ins:
+            if word == "FROM":
+                parts = arg.split()
+                name = parts[2] if len(parts) == 3 and parts[1].upper() == "AS" else None
+                out.append((parts[0], name, []))
+            else:
+                out[-1][2].append((word, arg))
+        return out
+
+    def test_every_stage_is_debian_12_like_the_setup_script_expects(self):
+        for base, _, _ in self.stages():
+            self.assertIn(base, ("debian:12", "debian:bookworm", "debian:12-slim", "debian:bookworm-slim"))
 
     def test_steps_are_the_setup_script(self):
         runs = [arg for word, arg in self.ins if word == "RUN"]
@@ -56,8 +69,32 @@ class DockerfileTest(unittest.TestCase):
 
     def test_setup_script_flags_exist(self):
         script = read("scripts/setup.sh")
-        self.assertIn("--deps-only", script)
-        self.assertIn("--no-deps", script)
+        for flag in ("--deps-only", "--no-deps", "--runtime-packages", "--runtime-deps"):
+            self.assertIn(flag, script)
+
+    def test_final_stage_holds_the_install_tree_and_runtime_packages_only(self):
+        stages = self.stages()
+        self.assertGreaterEqual(len(stages), 2, "one stage: compilers and build trees ship")
+        build_name = stages[0][1]
+        self.assertTrue(build_name, "the build stage needs a name for COPY --from")
+        final = stages[-1][2]
+        runs = [arg for word, arg in final if word == "RUN"]
+        self.assertTrue(runs and all("scripts/setup.sh --runtime-deps" in r for r in runs), runs)
+        copies = [arg for word, arg in final if word == "COPY"]
+        from_build = [c for c in copies if c.startswith(f"--from={build_name}")]
+        self.assertTrue(any(c.split()[1].endswith("/install") for c in from_build), copies)
+        for c in copies:
+            src = c.split()[-2]
+            self.assertNotIn(src, (".", "src", "build"), f"final stage copies sources: {c}")
+        # The build stage skips the tests and lists what the runtime needs.
+        build_runs = " ".join(arg for word, arg in stages[0][2] if word == "RUN")
+        self.assertIn("PPF_BUILD_TESTING=OFF", build_runs)
+        self.assertIn("scripts/setup.sh --runtime-packages", build_runs)
+
+    def test_build_context_leaves_host_build_trees_out(self):
+        ignored = {line.strip() for line in read(".dockerignore").splitlines()}
+        for tree in ("build", "install", "log", "test/js/node_modules"):
+            self.assertIn(tree, ignored)
 
     def test_default_command_starts_the_node_with_a_shipped_config(self):
         cmd = dict(self.ins)["CMD"]

@@ -2,8 +2,10 @@
 
 #include <unistd.h>
 
+#include <cctype>
 #include <cstdlib>
 #include <fstream>
+#include <sstream>
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 
@@ -99,6 +101,45 @@ std::string ChooseToolTransport(bool fastdds_defaults, ParticipantOptions* optio
          "FASTRTPS_DEFAULT_PROFILES_FILE or --fastdds-defaults to change)";
 }
 
+std::string DefaultParticipantProfileIn(const std::string& xml) {
+  // Plain scanning, not std::regex: libstdc++'s regex recurses per character and a long comment
+  // in a user's file could exhaust the stack.
+  std::string text;
+  for (size_t pos = 0; pos < xml.size();) {
+    const size_t open = xml.find("<!--", pos);
+    text += xml.substr(pos, open == std::string::npos ? std::string::npos : open - pos);
+    if (open == std::string::npos) break;
+    const size_t close = xml.find("-->", open + 4);
+    pos = close == std::string::npos ? xml.size() : close + 3;
+  }
+  // The value of attribute `key` in a tag's attribute text, "" if absent.
+  auto attribute = [](const std::string& attrs, const std::string& key) -> std::string {
+    for (size_t at = attrs.find(key); at != std::string::npos; at = attrs.find(key, at + 1)) {
+      if (at > 0 && !std::isspace(static_cast<unsigned char>(attrs[at - 1]))) continue;
+      size_t i = at + key.size();
+      while (i < attrs.size() && std::isspace(static_cast<unsigned char>(attrs[i]))) ++i;
+      if (i >= attrs.size() || attrs[i] != '=') continue;
+      ++i;
+      while (i < attrs.size() && std::isspace(static_cast<unsigned char>(attrs[i]))) ++i;
+      if (i >= attrs.size() || (attrs[i] != '"' && attrs[i] != '\'')) continue;
+      const size_t end = attrs.find(attrs[i], i + 1);
+      if (end == std::string::npos) return "";
+      return attrs.substr(i + 1, end - i - 1);
+    }
+    return "";
+  };
+  const std::string tag = "<participant";
+  for (size_t at = text.find(tag); at != std::string::npos; at = text.find(tag, at + 1)) {
+    const size_t after = at + tag.size();
+    if (after >= text.size() || !std::isspace(static_cast<unsigned char>(text[after]))) continue;
+    const size_t close = text.find('>', after);
+    if (close == std::string::npos) break;
+    const std::string attrs = text.substr(after, close - after);
+    if (attribute(attrs, "is_default_profile") == "true") return attribute(attrs, "profile_name");
+  }
+  return "";
+}
+
 fdds::DomainParticipant* CreateParticipant(const ParticipantOptions& options, std::string* error) {
   auto fail = [error](const std::string& why) -> fdds::DomainParticipant* {
     if (error) *error = why;
@@ -121,17 +162,23 @@ fdds::DomainParticipant* CreateParticipant(const ParticipantOptions& options, st
       return fail("Fast DDS rejected profiles file '" + options.profiles_file + "'");
     }
   }
+  // A file loaded after the factory came up does not replace the default participant QoS
+  // (load_profiles() acts once, for FASTRTPS_DEFAULT_PROFILES_FILE): without a profile name the
+  // file's own default profile is looked up by name. Otherwise `--profiles shm_udp.xml` alone
+  // ran on the built-in transports, which lose most clouds over 512 KB.
+  std::string profile = options.profile_name;
+  if (profile.empty() && !options.profiles_file.empty()) {
+    std::ifstream in(options.profiles_file);
+    std::stringstream text;
+    text << in.rdbuf();
+    profile = DefaultParticipantProfileIn(text.str());
+  }
   fdds::DomainParticipantQos qos = factory->get_default_participant_qos();
-  if (!options.profile_name.empty()) {
-    if (factory->get_participant_qos_from_profile(options.profile_name, qos) !=
-        ReturnCode_t::RETCODE_OK) {
-      return fail("no participant profile '" + options.profile_name + "' (profiles file '" +
+  if (!profile.empty()) {
+    if (factory->get_participant_qos_from_profile(profile, qos) != ReturnCode_t::RETCODE_OK) {
+      return fail("no participant profile '" + profile + "' (profiles file '" +
                   options.profiles_file + "')");
     }
-  } else if (!options.profiles_file.empty()) {
-    // A profile loaded after the factory came up is not applied to the default QoS by itself.
-    factory->load_profiles();
-    qos = factory->get_default_participant_qos();
   }
   if (!options.participant_name.empty()) qos.name(options.participant_name);
   fdds::DomainParticipant* participant =

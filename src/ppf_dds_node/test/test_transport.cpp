@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <sstream>
 #include <thread>
 
@@ -199,6 +200,22 @@ TEST(Transport, ToolsDefaultToTheProjectShmUdpProfileUnlessToldOtherwise) {
   EXPECT_EQ(explicit_file.profiles_file, PPF_DDS_CONFIG_DIR "/udp_only.xml");
   EXPECT_EQ(explicit_file.profile_name, "");
 
+  // `ppf_replay --profiles shm_udp.xml` (no --profile): the file's default profile applies, not
+  // Fast DDS's built-in transports. The old code created this participant with the built-in
+  // transports and lost most VLP-16 clouds (0.9 MB) in scripts/soak.sh.
+  for (const char* file : {"/shm_udp.xml", "/udp_only.xml"}) {
+    ppf::dds::ParticipantOptions file_only;
+    file_only.profiles_file = std::string(PPF_DDS_CONFIG_DIR) + file;
+    file_only.domain_id = ppf::test::TestDomainId(5);
+    p = ppf::dds::CreateParticipant(file_only, &error);
+    ASSERT_NE(p, nullptr) << error;
+    p->get_qos(qos);
+    EXPECT_FALSE(qos.transport().use_builtin_transports) << file;
+    EXPECT_EQ(qos.transport().user_transports.size(), std::string(file) == "/shm_udp.xml" ? 2u : 1u)
+        << file;
+    fdds::DomainParticipantFactory::get_instance()->delete_participant(p);
+  }
+
   ppf::dds::ParticipantOptions defaults;
   note = ppf::dds::ChooseToolTransport(true, &defaults);
   EXPECT_EQ(defaults.profiles_file, "");
@@ -216,6 +233,27 @@ TEST(Transport, ToolsDefaultToTheProjectShmUdpProfileUnlessToldOtherwise) {
   } else {
     unsetenv("FASTRTPS_DEFAULT_PROFILES_FILE");
   }
+}
+
+TEST(Transport, DefaultParticipantProfileIsFoundInTheXml) {
+  using ppf::dds::DefaultParticipantProfileIn;
+  std::ifstream in(PPF_DDS_CONFIG_DIR "/shm_udp.xml");
+  std::stringstream shm_udp;
+  shm_udp << in.rdbuf();
+  EXPECT_EQ(DefaultParticipantProfileIn(shm_udp.str()), "ppf_shm_udp");
+  EXPECT_EQ(DefaultParticipantProfileIn(
+                R"(<participant profile_name="a"><rtps/></participant>)"
+                R"(<participant is_default_profile = 'true'  profile_name='b'>)"),
+            "b");
+  // Commented out, not marked default, another element, or cut short: none.
+  EXPECT_EQ(DefaultParticipantProfileIn(
+                R"(<!-- <participant profile_name="c" is_default_profile="true"> -->)"
+                R"(<participant profile_name="d" is_default_profile="false">)"
+                R"(<participants profile_name="e" is_default_profile="true">)"
+                R"(<participant profile_name="f" is_default_profile="true")"),
+            "");
+  EXPECT_EQ(DefaultParticipantProfileIn(""), "");
+  EXPECT_EQ(DefaultParticipantProfileIn("<!-- never closed <participant"), "");
 }
 
 TEST(Transport, RosNameMangling) {

@@ -26,8 +26,8 @@ struct ParticipantOptions {
   int domain_id = 0;
   // XML file to load (empty: rely on FASTRTPS_DEFAULT_PROFILES_FILE or the Fast DDS defaults).
   std::string profiles_file;
-  // Participant profile to use (empty: the default participant QoS, i.e. the XML profile marked
-  // is_default_profile when one was loaded).
+  // Participant profile to use (empty: the participant profile marked is_default_profile in
+  // profiles_file, else the default participant QoS).
   std::string profile_name;
   std::string participant_name;
 };
@@ -46,6 +46,10 @@ std::string ChooseToolTransport(bool fastdds_defaults, ParticipantOptions* optio
 // Empty if neither exists.
 std::string ProjectShmUdpProfile();
 inline constexpr const char* kProjectShmUdpProfileName = "ppf_shm_udp";
+
+// The profile_name of the <participant> marked is_default_profile="true" in the Fast DDS XML
+// text (comments ignored); empty if there is none.
+std::string DefaultParticipantProfileIn(const std::string& xml);
 
 // Loads the XML (if any) and creates the participant. Returns nullptr with `error` set on failure
 // (unreadable XML, unknown profile, domain id out of range).

@@ -1,0 +1,71 @@
+// Registration from several initial guesses: the LiDAR-only mode's answer to a poor prediction.
+//
+// Without an IMU the prediction is the constant-velocity model (motion_model.hpp). A hand-held
+// sensor at 2 Hz keyframes turns a median 7.7 deg between scans, and its turn rate changes up to
+// 34 deg from one interval to the next (balm_realworld_lidar), so the guess can be tens of
+// degrees off; the kNN registration only reaches about one voxel neighbourhood (1 m at the 0.5 m
+// map), i.e. a few degrees at the ranges that dominate a scan. So each guess is first aligned
+// coarsely (a sample of the scan, a wide residual gate, more iterations, no refined gate), its
+// converged fit scored (the share of sample points with a map plane within fit_gate), and the
+// best becomes the prediction of the normal update (and of the skeleton tracker's incremental
+// plane guesses). The constant-velocity guess comes first and is kept at once when it fits
+// well: the others cost time only where the model failed.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "ppf_core/iekf.hpp"
+#include "ppf_core/knn_residual.hpp"
+#include "ppf_core/residual_provider.hpp"
+
+namespace ppf {
+
+struct LidarOnlyOptions {
+  // Fit (share of sample points with a map plane within fit_gate after the coarse alignment) at
+  // which the constant-velocity guess is kept without trying the others.
+  double good_fit = 0.6;
+  // Best fit below this: the scan is registered anyway, but reported Status::kDegenerate with
+  // the fit in the reason (the pose may be off).
+  double min_fit = 0.3;
+  double fit_gate = 0.1;           // m
+  int coarse_iterations = 10;      // iterations of each guess's coarse alignment
+  double coarse_max_residual = 1.0;  // m; residual gate of the coarse alignment
+  int coarse_points = 2000;        // sample of the downsampled scan used by the coarse stage
+  // Extra guesses when the constant-velocity one fits badly: the model's rotation turned about
+  // the LiDAR's axes by these angles (the turn rate changed), besides "no motion" and the
+  // model's rotation halved and 1.5-fold.
+  double offset_deg = 15.0;        // turns of +-offset and +-2*offset about z, +-offset about x, y
+  // Prior of the fine update about the coarse pose (1 sigma).
+  double prior_rot_std = 0.05;     // rad
+  double prior_pos_std = 0.1;      // m
+};
+
+struct MotionHypothesis {
+  std::string name;
+  Eigen::Isometry3d T_world_lidar = Eigen::Isometry3d::Identity();
+};
+
+struct CoarseAlignment {
+  Eigen::Isometry3d T_world_lidar = Eigen::Isometry3d::Identity();  // the best, aligned
+  std::string name;   // which guess it started from
+  double fit = 0.0;   // its fit (see LidarOnlyOptions)
+  int tried = 0;      // guesses aligned
+};
+
+// Aligns hypotheses[0] and, if its fit is below good_fit, all others; returns the best. `frame`
+// holds the scan and the map (its labels are ignored: every point takes part). Empty hypotheses
+// or an empty frame: fit 0, the first hypothesis (or identity) unchanged.
+CoarseAlignment AlignHypotheses(const ScanFrame& frame,
+                                const std::vector<MotionHypothesis>& hypotheses,
+                                const LidarOnlyOptions& options, const IekfOptions& iekf,
+                                const KnnOptions& knn);
+
+// The share of frame points (all labels) with a map plane within options.fit_gate at the pose.
+double ScanFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+               const LidarOnlyOptions& options, const KnnOptions& knn);
+
+}  // namespace ppf

@@ -135,6 +135,7 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("imu.gap_gyro_std", &c->gap_gyro_std);
 
   t.Add("lidar_only.good_fit", &c->lidar_only.good_fit);
+  t.Add("lidar_only.good_fit_relative", &c->lidar_only.good_fit_relative);
   t.Add("lidar_only.min_fit", &c->lidar_only.min_fit);
   t.Add("lidar_only.fit_gate", &c->lidar_only.fit_gate);
   t.Add("lidar_only.coarse_iterations", &c->lidar_only.coarse_iterations);
@@ -232,8 +233,10 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(c->time.unit_scale_s >= 0.0), "time.unit_scale", &c->time.unit_scale_s, 0.0);
   fix(!(c->imu_auto_wait_s >= 0.0), "imu.auto_wait", &c->imu_auto_wait_s, 2.0);
   LidarOnlyOptions* lo = &c->lidar_only;
-  fix(!(lo->good_fit >= 0.0 && lo->good_fit <= 1.0), "lidar_only.good_fit", &lo->good_fit, 0.6);
-  fix(!(lo->min_fit >= 0.0 && lo->min_fit <= 1.0), "lidar_only.min_fit", &lo->min_fit, 0.3);
+  fix(!(lo->good_fit >= 0.0 && lo->good_fit <= 1.0), "lidar_only.good_fit", &lo->good_fit, 0.8);
+  fix(!(lo->good_fit_relative >= 0.0 && lo->good_fit_relative <= 1.0),
+      "lidar_only.good_fit_relative", &lo->good_fit_relative, 0.95);
+  fix(!(lo->min_fit >= 0.0 && lo->min_fit <= 1.0), "lidar_only.min_fit", &lo->min_fit, 0.5);
   fix(!(lo->fit_gate > 0.0), "lidar_only.fit_gate", &lo->fit_gate, 0.1);
   fix(lo->coarse_iterations < 1 || lo->coarse_iterations > 50, "lidar_only.coarse_iterations",
       &lo->coarse_iterations, 10);

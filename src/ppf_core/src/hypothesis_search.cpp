@@ -1,6 +1,13 @@
 #include "ppf_core/hypothesis_search.hpp"
 
 #include <algorithm>
+#include <cmath>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "ppf_core/voxel_map.hpp"
 
 namespace ppf {
 namespace {
@@ -29,18 +36,38 @@ NavState StateAt(const Eigen::Isometry3d& T_world_lidar, const Eigen::Isometry3d
 
 }  // namespace
 
-double ScanFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
-               const LidarOnlyOptions& options, const KnnOptions& knn) {
-  if (frame.points_lidar.empty() || frame.map == nullptr) return 0.0;
-  ScanFrame all = frame;
-  all.labels.assign(all.points_lidar.size(), PointLabel::kScattered);
-  KnnOptions gate = knn;
-  gate.max_residual = options.fit_gate;
-  KnnResidualProvider score(gate);
-  score.BeginScan(all);
-  std::vector<PointPlaneRow> rows;
-  score.ComputeRows(T_world_lidar, &rows);
-  return static_cast<double>(rows.size()) / static_cast<double>(all.points_lidar.size());
+FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+                  const LidarOnlyOptions& options, const KnnOptions& knn) {
+  FitScore f;
+  if (frame.points_lidar.empty() || frame.map == nullptr || frame.map->size() == 0) return f;
+  const VoxelMap& map = *frame.map;
+  const size_t k = static_cast<size_t>(std::max(3, knn.k));
+  const long n = static_cast<long>(frame.points_lidar.size());
+  long covered = 0, inliers = 0;
+#ifdef _OPENMP
+  const int threads = knn.num_threads > 0 ? knn.num_threads : omp_get_max_threads();
+#endif
+#pragma omp parallel num_threads(threads) reduction(+ : covered, inliers)
+  {
+    std::vector<Eigen::Vector3f> nn;
+#pragma omp for schedule(dynamic, 256)
+    for (long i = 0; i < n; ++i) {
+      const Eigen::Vector3d p = T_world_lidar * frame.points_lidar[static_cast<size_t>(i)].cast<double>();
+      if (map.GetClosest(p.cast<float>(), k, knn.max_neighbor_distance, &nn) < k) continue;
+      ++covered;
+      Eigen::Vector3d normal;
+      double d;
+      if (!FitPlane(nn, knn.plane_threshold, &normal, &d, knn.min_plane_spread)) continue;
+      if (std::abs(normal.dot(p) + d) < options.fit_gate) ++inliers;
+    }
+  }
+  f.inliers = static_cast<size_t>(inliers);
+  f.covered = static_cast<size_t>(covered);
+  // Too few covered points say nothing (a pose in empty space); 5 % of the scan at least.
+  if (covered > 0 && static_cast<double>(covered) >= 0.05 * static_cast<double>(n)) {
+    f.fit = static_cast<double>(inliers) / static_cast<double>(covered);
+  }
+  return f;
 }
 
 CoarseAlignment AlignHypotheses(const ScanFrame& frame,
@@ -61,20 +88,24 @@ CoarseAlignment AlignHypotheses(const ScanFrame& frame,
   KnnOptions wide = knn;
   wide.max_residual = std::max(knn.max_residual, options.coarse_max_residual);
   KnnResidualProvider provider(wide);
-  best.fit = -1.0;
+  size_t best_inliers = 0;
+  bool have = false;
   for (size_t i = 0; i < hypotheses.size(); ++i) {
     NavState s = StateAt(hypotheses[i].T_world_lidar, sample.T_imu_lidar);
     provider.BeginScan(sample);
     IekfUpdate(coarse, sample.T_imu_lidar, {&provider}, &s);
     const Eigen::Isometry3d T = s.T_world_imu() * sample.T_imu_lidar;
-    const double fit = ScanFit(sample, T, options, knn);
+    const FitScore score = ScoreFit(sample, T, options, knn);
     ++best.tried;
-    if (fit > best.fit) {
-      best.fit = fit;
+    // The guess that explains the most points wins; the ratio only says whether to look further.
+    if (!have || score.inliers > best_inliers) {
+      have = true;
+      best_inliers = score.inliers;
+      best.fit = score.fit;
       best.T_world_lidar = T;
       best.name = hypotheses[i].name;
     }
-    if (i == 0 && fit >= options.good_fit) break;
+    if (score.fit >= options.good_fit) break;
   }
   return best;
 }

@@ -1,5 +1,6 @@
 #include "ppf_core/lio_ppf.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -83,6 +84,7 @@ struct LioPpf::Impl {
     map_initialized = false;
     init.Reset();
     motion.Reset();
+    recent_fits.clear();
     map.clear();
     imu.clear();
     state = NavState();
@@ -385,7 +387,7 @@ struct LioPpf::Impl {
     if (lidar_only) {
       t0 = Clock::now();
       coarse = AlignGuesses(t_end);
-      r.timings.residuals += MsSince(t0);
+      r.timings.guesses = MsSince(t0);
     }
 
     if (config.mode == Mode::kPpf && splitter) {
@@ -416,7 +418,7 @@ struct LioPpf::Impl {
     IekfOptions iekf = config.iekf;
     if (t_end - map_init_stamp_s < iekf.refined_gate_after_s) iekf.refined_gate = 0.0;
     const IekfReport rep = IekfUpdate(iekf, config.T_imu_lidar, providers, &state);
-    r.timings.residuals += rep.residuals_ms;
+    r.timings.residuals = rep.residuals_ms;
     r.timings.update = rep.update_ms;
     r.iterations = rep.iterations;
     r.converged = rep.converged;
@@ -579,8 +581,16 @@ struct LioPpf::Impl {
       turned("turn y+", Eigen::Vector3d::UnitY(), a);
       turned("turn y-", Eigen::Vector3d::UnitY(), -a);
     }
-    CoarseAlignment c =
-        AlignHypotheses(frame, h, config.lidar_only, config.iekf, config.knn);
+    LidarOnlyOptions options = config.lidar_only;
+    if (recent_fits.size() >= 3) {
+      std::vector<double> sorted(recent_fits.begin(), recent_fits.end());
+      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+      options.good_fit =
+          std::min(options.good_fit, options.good_fit_relative * sorted[sorted.size() / 2]);
+    }
+    CoarseAlignment c = AlignHypotheses(frame, h, options, config.iekf, config.knn);
+    recent_fits.push_back(c.fit);
+    if (recent_fits.size() > 10) recent_fits.pop_front();
     const Eigen::Isometry3d T_world_imu = c.T_world_lidar * T_il.inverse();
     state.R_world_imu = T_world_imu.linear();
     state.p_world_imu = T_world_imu.translation();
@@ -634,6 +644,7 @@ struct LioPpf::Impl {
   bool lidar_only = false;   // decided: no IMU (DecideImuMode)
   bool lio_decided = false;  // decided: the IMU predicts
   ConstantVelocityModel motion;  // LiDAR-only prediction (IMU frame poses)
+  std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
   size_t ignored_imu = 0;
   double map_init_stamp_s = 0.0;
   double last_imu_stamp = -std::numeric_limits<double>::infinity();

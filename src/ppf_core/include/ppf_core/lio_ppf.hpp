@@ -93,10 +93,11 @@ const char* StatusName(Status status);
 
 // Milliseconds. preprocess = decoding the cloud (layout, per-point time); downsample = stride and
 // range filter + voxel grid on the raw points; deskew = IMU propagation + de-skew of the
-// downsampled points (preprocess.hpp explains the order).
+// downsampled points (preprocess.hpp explains the order). guesses = LiDAR-only coarse alignment
+// of the motion guesses (hypothesis_search.hpp), 0 with an IMU.
 struct StageTimings {
   double preprocess = 0, deskew = 0, downsample = 0, ppf = 0, residuals = 0, update = 0,
-         map_insert = 0, total = 0;
+         map_insert = 0, total = 0, guesses = 0;
 };
 
 struct ScanResult {

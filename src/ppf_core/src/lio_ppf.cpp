@@ -107,13 +107,16 @@ struct LioPpf::Impl {
   }
 
   void AddImu(const ImuSample& s) {
-    if (lidar_only) {
+    // kNone: ignored even before the first scan has made the decision (DecideImuMode).
+    if (lidar_only || config.imu_mode == ImuMode::kNone) {
       ++ignored_imu;
       return;
     }
     if (!lio_decided) {
-      lio_decided = true;  // kAuto: an IMU exists
-      Log(LogLevel::kInfo, "IMU data present: LiDAR-inertial mode");
+      lio_decided = true;
+      if (config.imu_mode == ImuMode::kAuto) {
+        Log(LogLevel::kInfo, "IMU data present: LiDAR-inertial mode");
+      }
     }
     if (!std::isfinite(s.stamp_s) || !s.angular_velocity.allFinite() ||
         !s.linear_acceleration.allFinite()) {

@@ -15,7 +15,8 @@ namespace {
 ScanFrame Sample(const ScanFrame& frame, int max_points) {
   ScanFrame s = frame;
   const size_t n = frame.points_lidar.size();
-  const size_t stride = max_points > 0 ? std::max<size_t>(1, n / static_cast<size_t>(max_points)) : 1;
+  const size_t stride =
+      max_points > 0 ? std::max<size_t>(1, n / static_cast<size_t>(max_points)) : 1;
   s.points_lidar.clear();
   for (size_t i = 0; i < n; i += stride) s.points_lidar.push_back(frame.points_lidar[i]);
   s.labels.assign(s.points_lidar.size(), PointLabel::kScattered);
@@ -52,7 +53,8 @@ FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar
     std::vector<Eigen::Vector3f> nn;
 #pragma omp for schedule(dynamic, 256)
     for (long i = 0; i < n; ++i) {
-      const Eigen::Vector3d p = T_world_lidar * frame.points_lidar[static_cast<size_t>(i)].cast<double>();
+      const Eigen::Vector3d p =
+          T_world_lidar * frame.points_lidar[static_cast<size_t>(i)].cast<double>();
       if (map.GetClosest(p.cast<float>(), k, knn.max_neighbor_distance, &nn) < k) continue;
       ++covered;
       Eigen::Vector3d normal;

@@ -27,7 +27,8 @@ Eigen::Isometry3d Pose(const Eigen::Vector3d& p, const Eigen::Vector3d& rotvec) 
 // A constant body twist continues: two poses 0.5 s apart predict the third exactly, and the
 // de-skew trace passes through both ends.
 TEST(ConstantVelocityModel, ExtrapolatesAConstantScrewMotion) {
-  const Eigen::Isometry3d step = Pose(Eigen::Vector3d(0.4, 0.1, 0.0), Eigen::Vector3d(0.0, 0.05, 0.3));
+  const Eigen::Isometry3d step =
+      Pose(Eigen::Vector3d(0.4, 0.1, 0.0), Eigen::Vector3d(0.0, 0.05, 0.3));
   const Eigen::Isometry3d T0 = Pose(Eigen::Vector3d(1, 2, 3), Eigen::Vector3d(0.1, -0.2, 0.5));
   ConstantVelocityModel m;
   EXPECT_TRUE(m.Predict(5.0).isApprox(Eigen::Isometry3d::Identity()));  // nothing known yet
@@ -55,7 +56,8 @@ struct RoomFixture {
   std::vector<Eigen::Vector3f> Scan(const Eigen::Isometry3d& T_world_lidar) const {
     const test::PoseFn pose = [&](double) { return T_world_lidar; };
     std::vector<Eigen::Vector3f> out;
-    for (const auto& sp : test::SimulateScan(scene, pose, Eigen::Isometry3d::Identity(), 0.0, lidar)) {
+    for (const auto& sp :
+         test::SimulateScan(scene, pose, Eigen::Isometry3d::Identity(), 0.0, lidar)) {
       out.push_back(sp.p);
     }
     return out;
@@ -75,9 +77,11 @@ struct RoomFixture {
 // the true pose, and the fit tells the two apart.
 TEST(AlignHypotheses, RecoversATurnTheModelMissed) {
   RoomFixture f;
-  const Eigen::Isometry3d truth = Pose(Eigen::Vector3d(0.3, -0.2, 0.05), Eigen::Vector3d(0, 0, 0.52));
+  const Eigen::Isometry3d truth =
+      Pose(Eigen::Vector3d(0.3, -0.2, 0.05), Eigen::Vector3d(0, 0, 0.52));
   f.Build(truth);
-  const Eigen::Isometry3d model = Pose(Eigen::Vector3d(0.3, -0.2, 0.05), Eigen::Vector3d(0, 0, 0.0));
+  const Eigen::Isometry3d model =
+      Pose(Eigen::Vector3d(0.3, -0.2, 0.05), Eigen::Vector3d(0, 0, 0.0));
   LidarOnlyOptions options;
   const IekfOptions iekf;
   const KnnOptions knn;
@@ -105,10 +109,11 @@ TEST(AlignHypotheses, AGoodFirstGuessEndsTheSearch) {
   RoomFixture f;
   const Eigen::Isometry3d truth = Pose(Eigen::Vector3d(0.4, 0.1, 0.0), Eigen::Vector3d(0, 0, 0.1));
   f.Build(truth);
-  const Eigen::Isometry3d near = Pose(Eigen::Vector3d(0.35, 0.12, 0.0), Eigen::Vector3d(0, 0, 0.08));
-  const CoarseAlignment c = AlignHypotheses(
-      f.frame, {{"model", near}, {"no motion", Eigen::Isometry3d::Identity()}}, LidarOnlyOptions(),
-      IekfOptions(), KnnOptions());
+  const Eigen::Isometry3d near =
+      Pose(Eigen::Vector3d(0.35, 0.12, 0.0), Eigen::Vector3d(0, 0, 0.08));
+  const CoarseAlignment c =
+      AlignHypotheses(f.frame, {{"model", near}, {"no motion", Eigen::Isometry3d::Identity()}},
+                      LidarOnlyOptions(), IekfOptions(), KnnOptions());
   EXPECT_EQ(c.tried, 1);
   EXPECT_EQ(c.name, "model");
   EXPECT_LT((c.T_world_lidar.translation() - truth.translation()).norm(), 0.02);

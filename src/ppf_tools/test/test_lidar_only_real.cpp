@@ -97,10 +97,11 @@ TEST(LidarOnlyReal, BalmRealworldBothModesTrackEveryScan) {
     ASSERT_TRUE(m.ape.ok) << m.ape.error;
     EXPECT_EQ(m.ape.matched, 177u) << name;
     map_size[mode == ppf::Mode::kPpf] = m.run.results.back().map_size;
-    std::printf("[balm %s] APE(se3) rmse %.3f m max %.3f m; final map %zu points; "
-                "scans that needed extra guesses %zu; wall %.1f s\n",
-                name, m.ape.stats.rmse, m.ape.stats.max, m.run.results.back().map_size, guessed,
-                m.run.wall_s);
+    std::printf(
+        "[balm %s] APE(se3) rmse %.3f m max %.3f m; final map %zu points; "
+        "scans that needed extra guesses %zu; wall %.1f s\n",
+        name, m.ape.stats.rmse, m.ape.stats.max, m.run.results.back().map_size, guessed,
+        m.run.wall_s);
     EXPECT_LE(m.ape.stats.rmse, 0.15) << name;
   }
   EXPECT_LT(map_size[1], map_size[0]);

@@ -36,17 +36,17 @@ struct LidarOnlyOptions {
   // Best fit below this: the scan is registered anyway, but reported Status::kDegenerate with
   // the fit in the reason (the pose may be off).
   double min_fit = 0.5;
-  double fit_gate = 0.1;           // m
-  int coarse_iterations = 10;      // iterations of each guess's coarse alignment
+  double fit_gate = 0.1;             // m
+  int coarse_iterations = 10;        // iterations of each guess's coarse alignment
   double coarse_max_residual = 1.0;  // m; residual gate of the coarse alignment
-  int coarse_points = 2000;        // sample of the downsampled scan used by the coarse stage
+  int coarse_points = 2000;          // sample of the downsampled scan used by the coarse stage
   // Extra guesses when the constant-velocity one fits badly: the model's rotation turned about
   // the LiDAR's axes by these angles (the turn rate changed), besides "no motion" and the
   // model's rotation halved and 1.5-fold.
-  double offset_deg = 15.0;        // turns of +-offset and +-2*offset about z, +-offset about x, y
+  double offset_deg = 15.0;  // turns of +-offset and +-2*offset about z, +-offset about x, y
   // Prior of the fine update about the coarse pose (1 sigma).
-  double prior_rot_std = 0.05;     // rad
-  double prior_pos_std = 0.1;      // m
+  double prior_rot_std = 0.05;  // rad
+  double prior_pos_std = 0.1;   // m
 };
 
 struct MotionHypothesis {
@@ -55,10 +55,12 @@ struct MotionHypothesis {
 };
 
 struct CoarseAlignment {
-  Eigen::Isometry3d T_world_lidar = Eigen::Isometry3d::Identity();  // the best, aligned
-  std::string name;   // which guess it started from
-  double fit = 0.0;   // its fit (see LidarOnlyOptions)
-  int tried = 0;      // guesses aligned
+  // The best guess after its coarse alignment, the guess's name, its fit (ScoreFit) and how
+  // many guesses were aligned.
+  Eigen::Isometry3d T_world_lidar = Eigen::Isometry3d::Identity();
+  std::string name;
+  double fit = 0.0;
+  int tried = 0;
 };
 
 // Aligns the hypotheses in order until one reaches good_fit; returns the one with the most

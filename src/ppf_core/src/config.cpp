@@ -240,11 +240,11 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(lo->fit_gate > 0.0), "lidar_only.fit_gate", &lo->fit_gate, 0.1);
   fix(lo->coarse_iterations < 1 || lo->coarse_iterations > 50, "lidar_only.coarse_iterations",
       &lo->coarse_iterations, 10);
-  fix(!(lo->coarse_max_residual > 0.0), "lidar_only.coarse_max_residual",
-      &lo->coarse_max_residual, 1.0);
+  fix(!(lo->coarse_max_residual > 0.0), "lidar_only.coarse_max_residual", &lo->coarse_max_residual,
+      1.0);
   fix(lo->coarse_points < 100, "lidar_only.coarse_points", &lo->coarse_points, 100);
-  fix(!(lo->offset_deg >= 0.0 && lo->offset_deg <= 90.0), "lidar_only.offset_deg",
-      &lo->offset_deg, 15.0);
+  fix(!(lo->offset_deg >= 0.0 && lo->offset_deg <= 90.0), "lidar_only.offset_deg", &lo->offset_deg,
+      15.0);
   fix(!(lo->prior_rot_std > 0.0), "lidar_only.prior_rot_std", &lo->prior_rot_std, 0.05);
   fix(!(lo->prior_pos_std > 0.0), "lidar_only.prior_pos_std", &lo->prior_pos_std, 0.1);
   fix(!(c->init.duration_s >= 0.0), "imu.init_duration", &c->init.duration_s, 1.0);

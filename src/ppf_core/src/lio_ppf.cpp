@@ -448,8 +448,8 @@ struct LioPpf::Impl {
     if (rep.skipped) {
       r.status = Status::kDegenerate;
       std::ostringstream os;
-      os << "too few residuals (" << rep.num_rows << " < " << config.iekf.min_rows << "): "
-         << (lidar_only ? "motion-model prediction only" : "IMU prediction only");
+      os << "too few residuals (" << rep.num_rows << " < " << config.iekf.min_rows
+         << "): " << (lidar_only ? "motion-model prediction only" : "IMU prediction only");
       Append(&r.reason, os.str());
     } else if (rep.degenerate) {
       r.status = Status::kDegenerate;
@@ -644,9 +644,9 @@ struct LioPpf::Impl {
   VoxelGridDownsampler downsampler;  // keeps its hash table between scans
   bool initialized = false;
   bool map_initialized = false;
-  bool lidar_only = false;   // decided: no IMU (DecideImuMode)
-  bool lio_decided = false;  // decided: the IMU predicts
-  ConstantVelocityModel motion;  // LiDAR-only prediction (IMU frame poses)
+  bool lidar_only = false;         // decided: no IMU (DecideImuMode)
+  bool lio_decided = false;        // decided: the IMU predicts
+  ConstantVelocityModel motion;    // LiDAR-only prediction (IMU frame poses)
   std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
   size_t ignored_imu = 0;
   double map_init_stamp_s = 0.0;

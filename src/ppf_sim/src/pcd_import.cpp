@@ -169,8 +169,9 @@ ImportSummary ImportPcdDirectory(const std::string& dir, const std::string& out_
     } else if (StampFromFileName(files[i], &stamp)) {
       source = "file name";
     } else {
-      throw std::runtime_error("no time for " + files[i] +
-                               ": no absolute per-point time, no --stamps or --rate, name not a time");
+      throw std::runtime_error(
+          "no time for " + files[i] +
+          ": no absolute per-point time, no --stamps or --rate, name not a time");
     }
     c.stamp_ns = stamp;
     c.frame_id = opt.lidar_frame;

@@ -211,11 +211,11 @@ int main(int argc, char** argv) {
   }
   if (!args.quiet) {
     const auto summary = ppf::tools::Summarize(results, wall_s);
-    ppf::tools::PrintSummary(std::cout, summary,
-                             std::string("ppf_offline (") +
-                                 (config.mode == ppf::Mode::kPpf ? "ppf" : "knn") +
-                                 (run.lidar_only ? ", LiDAR-only" : "") + "): " +
-                                 std::to_string(trajectory.size()) + " poses -> " + args.out);
+    ppf::tools::PrintSummary(
+        std::cout, summary,
+        std::string("ppf_offline (") + (config.mode == ppf::Mode::kPpf ? "ppf" : "knn") +
+            (run.lidar_only ? ", LiDAR-only" : "") + "): " + std::to_string(trajectory.size()) +
+            " poses -> " + args.out);
     if (source_stats.malformed > 0) {
       std::cout << "  skipped malformed messages: " << source_stats.malformed << "\n";
     }

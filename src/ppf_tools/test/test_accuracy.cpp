@@ -200,10 +200,10 @@ INSTANTIATE_TEST_SUITE_P(
         Case{"urban_hdl32_ppf", "--scene urban --lidar hdl32", "hdl32", 12, kPpf, 0.5, 0},
         // LiDAR-only on the same 12 s drive (no extra sequence): 1 % of the path (issue 16);
         // measured 0.02 % (20 s: APE 0.020 m knn, 0.018 m ppf over 97.5 m).
-        Case{"urban_hdl32_lidar_only_knn", "--scene urban --lidar hdl32", "hdl32", 12, kKnn, 1.0,
-             0, 0.0, true},
-        Case{"urban_hdl32_lidar_only_ppf", "--scene urban --lidar hdl32", "hdl32", 12, kPpf, 1.0,
-             0, 0.0, true},
+        Case{"urban_hdl32_lidar_only_knn", "--scene urban --lidar hdl32", "hdl32", 12, kKnn, 1.0, 0,
+             0.0, true},
+        Case{"urban_hdl32_lidar_only_ppf", "--scene urban --lidar hdl32", "hdl32", 12, kPpf, 1.0, 0,
+             0.0, true},
         Case{"urban_hdl64_knn", "--scene urban --lidar hdl64", "hdl64", 8, kKnn, 0.5, 0},
         Case{"urban_hdl64_ppf", "--scene urban --lidar hdl64", "hdl64", 8, kPpf, 0.5, 0},
         Case{"urban_vlp16_knn", "--scene urban --lidar vlp16", "vlp16", 12, kKnn, 0.5, 0},

@@ -113,6 +113,9 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("map.min_point_distance", &c->map.min_point_distance);
   t.Add("map.radius", &c->map_radius);
 
+  t.AddEnum("imu.mode", &c->imu_mode,
+            {{"auto", ImuMode::kAuto}, {"lio", ImuMode::kLio}, {"none", ImuMode::kNone}});
+  t.Add("imu.auto_wait", &c->imu_auto_wait_s);
   t.Add("imu.init_duration", &c->init.duration_s);
   t.Add("imu.init_min_samples", &c->init.min_samples);
   t.Add("imu.init_max_acc_std", &c->init.max_acc_std);
@@ -130,6 +133,17 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("imu.max_gap_bridge", &c->max_imu_gap_bridge_s);
   t.Add("imu.gap_acc_std", &c->gap_acc_std);
   t.Add("imu.gap_gyro_std", &c->gap_gyro_std);
+
+  t.Add("lidar_only.good_fit", &c->lidar_only.good_fit);
+  t.Add("lidar_only.good_fit_relative", &c->lidar_only.good_fit_relative);
+  t.Add("lidar_only.min_fit", &c->lidar_only.min_fit);
+  t.Add("lidar_only.fit_gate", &c->lidar_only.fit_gate);
+  t.Add("lidar_only.coarse_iterations", &c->lidar_only.coarse_iterations);
+  t.Add("lidar_only.coarse_max_residual", &c->lidar_only.coarse_max_residual);
+  t.Add("lidar_only.coarse_points", &c->lidar_only.coarse_points);
+  t.Add("lidar_only.offset_deg", &c->lidar_only.offset_deg);
+  t.Add("lidar_only.prior_rot_std", &c->lidar_only.prior_rot_std);
+  t.Add("lidar_only.prior_pos_std", &c->lidar_only.prior_pos_std);
 
   t.Add("iekf.max_iterations", &c->iekf.max_iterations);
   t.Add("iekf.convergence_rot", &c->iekf.convergence_rot_rad);
@@ -217,6 +231,22 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(c->map_radius >= 0.0), "map.radius", &c->map_radius, 0.0);
   fix(!(c->time.scan_period_s > 0.0), "time.scan_period", &c->time.scan_period_s, 0.1);
   fix(!(c->time.unit_scale_s >= 0.0), "time.unit_scale", &c->time.unit_scale_s, 0.0);
+  fix(!(c->imu_auto_wait_s >= 0.0), "imu.auto_wait", &c->imu_auto_wait_s, 2.0);
+  LidarOnlyOptions* lo = &c->lidar_only;
+  fix(!(lo->good_fit >= 0.0 && lo->good_fit <= 1.0), "lidar_only.good_fit", &lo->good_fit, 0.8);
+  fix(!(lo->good_fit_relative >= 0.0 && lo->good_fit_relative <= 1.0),
+      "lidar_only.good_fit_relative", &lo->good_fit_relative, 0.95);
+  fix(!(lo->min_fit >= 0.0 && lo->min_fit <= 1.0), "lidar_only.min_fit", &lo->min_fit, 0.5);
+  fix(!(lo->fit_gate > 0.0), "lidar_only.fit_gate", &lo->fit_gate, 0.1);
+  fix(lo->coarse_iterations < 1 || lo->coarse_iterations > 50, "lidar_only.coarse_iterations",
+      &lo->coarse_iterations, 10);
+  fix(!(lo->coarse_max_residual > 0.0), "lidar_only.coarse_max_residual", &lo->coarse_max_residual,
+      1.0);
+  fix(lo->coarse_points < 100, "lidar_only.coarse_points", &lo->coarse_points, 100);
+  fix(!(lo->offset_deg >= 0.0 && lo->offset_deg <= 90.0), "lidar_only.offset_deg", &lo->offset_deg,
+      15.0);
+  fix(!(lo->prior_rot_std > 0.0), "lidar_only.prior_rot_std", &lo->prior_rot_std, 0.05);
+  fix(!(lo->prior_pos_std > 0.0), "lidar_only.prior_pos_std", &lo->prior_pos_std, 0.1);
   fix(!(c->init.duration_s >= 0.0), "imu.init_duration", &c->init.duration_s, 1.0);
   fix(c->init.min_samples < 2, "imu.init_min_samples", &c->init.min_samples, 2);
   fix(!(c->max_imu_gap_s > 0.0), "imu.max_gap", &c->max_imu_gap_s, 0.5);

@@ -1,11 +1,14 @@
 #include "ppf_core/lio_ppf.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <sstream>
 
 #include "ppf_core/deskew.hpp"
+#include "ppf_core/hypothesis_search.hpp"
+#include "ppf_core/motion_model.hpp"
 #include "ppf_core/preprocess.hpp"
 #include "ppf_core/skeleton_tracker.hpp"
 #include "ppf_core/so3.hpp"
@@ -80,6 +83,8 @@ struct LioPpf::Impl {
     initialized = false;
     map_initialized = false;
     init.Reset();
+    motion.Reset();
+    recent_fits.clear();
     map.clear();
     imu.clear();
     state = NavState();
@@ -89,6 +94,8 @@ struct LioPpf::Impl {
     for (auto& p : extra) p->Reset();
     knn->Reset();
     scans_since_prune = 0;
+    // LiDAR-only needs no initialization: the next scan starts the map again.
+    if (lidar_only) initialized = true;
     if (!reason.empty()) {
       Log(LogLevel::kWarn, "reset: " + reason);
       ScanResult r;
@@ -100,6 +107,17 @@ struct LioPpf::Impl {
   }
 
   void AddImu(const ImuSample& s) {
+    // kNone: ignored even before the first scan has made the decision (DecideImuMode).
+    if (lidar_only || config.imu_mode == ImuMode::kNone) {
+      ++ignored_imu;
+      return;
+    }
+    if (!lio_decided) {
+      lio_decided = true;
+      if (config.imu_mode == ImuMode::kAuto) {
+        Log(LogLevel::kInfo, "IMU data present: LiDAR-inertial mode");
+      }
+    }
     if (!std::isfinite(s.stamp_s) || !s.angular_velocity.allFinite() ||
         !s.linear_acceleration.allFinite()) {
       ++dropped_imu;
@@ -191,6 +209,7 @@ struct LioPpf::Impl {
 
   std::vector<ScanResult> Process(bool flush) {
     std::vector<ScanResult> out;
+    if (!DecideImuMode(flush)) return out;
     while (!scans.empty()) {
       QueuedScan& q = scans.front();
       // Wait for the IMU to cover the scan, unless the IMU stream has stalled: scans newer than
@@ -266,7 +285,7 @@ struct LioPpf::Impl {
       r.reason = init.reason().empty() ? "waiting for IMU data" : init.reason();
       return r;
     }
-    if (scan.t_end <= state.stamp_s && !map_initialized) {
+    if (!lidar_only && scan.t_end <= state.stamp_s && !map_initialized) {
       r.status = Status::kInitializing;
       r.reason = "scan ends before IMU initialization finished";
       return r;
@@ -302,15 +321,20 @@ struct LioPpf::Impl {
 
     // Propagate to the scan end and de-skew the downsampled points.
     t0 = Clock::now();
+    if (lidar_only && !map_initialized) StartLidarOnly(scan.t_end);
     const double t_end = std::max(scan.t_end, state.stamp_s);
-    std::vector<ImuSample> samples(imu.begin(), imu.end());
     PoseTrace trace;
-    PropagateImu(samples, t_end, init.acc_scale(), config.noise, &state, &trace);
-    for (const ImuSample& s : samples) {
-      if (s.stamp_s > t_end && s.stamp_s != samples.front().stamp_s) break;
-      gyro_at_scan_end = s.angular_velocity;
+    if (lidar_only) {
+      PredictConstantVelocity(t_end, &trace);
+    } else {
+      std::vector<ImuSample> samples(imu.begin(), imu.end());
+      PropagateImu(samples, t_end, init.acc_scale(), config.noise, &state, &trace);
+      for (const ImuSample& s : samples) {
+        if (s.stamp_s > t_end && s.stamp_s != samples.front().stamp_s) break;
+        gyro_at_scan_end = s.angular_velocity;
+      }
     }
-    if (t_end - last_imu_stamp > 0.02) {
+    if (!lidar_only && t_end - last_imu_stamp > 0.02) {
       std::ostringstream os;
       os << "IMU extrapolated by " << t_end - last_imu_stamp << " s (last sample held)";
       Append(&r.reason, os.str());
@@ -350,6 +374,10 @@ struct LioPpf::Impl {
       InsertScattered(frame, frame.T_world_lidar_predicted, &r);
       map_initialized = !frame.points_lidar.empty();
       map_init_stamp_s = t_end;
+      if (lidar_only && map_initialized) {
+        motion.Update(state.T_world_imu(), t_end);
+        Append(&r.reason, "LiDAR-only (no IMU): world frame = this scan's LiDAR frame");
+      }
       r.timings.map_insert = MsSince(t0);
       r.status = map_initialized ? Status::kOk : Status::kInitializing;
       Append(&r.reason, map_initialized ? "map initialized" : "empty first scan");
@@ -359,6 +387,13 @@ struct LioPpf::Impl {
       r.map_size = map.size();
       r.timings.total = MsSince(t_total) + q.decode_ms;
       return r;
+    }
+
+    CoarseAlignment coarse;
+    if (lidar_only) {
+      t0 = Clock::now();
+      coarse = AlignGuesses(t_end);
+      r.timings.guesses = MsSince(t0);
     }
 
     if (config.mode == Mode::kPpf && splitter) {
@@ -417,13 +452,28 @@ struct LioPpf::Impl {
       r.status = Status::kDegenerate;
       std::ostringstream os;
       os << "too few residuals (" << rep.num_rows << " < " << config.iekf.min_rows
-         << "): IMU prediction only";
+         << "): " << (lidar_only ? "motion-model prediction only" : "IMU prediction only");
       Append(&r.reason, os.str());
     } else if (rep.degenerate) {
       r.status = Status::kDegenerate;
       Append(&r.reason, "degenerate: " + rep.degenerate_reason);
     } else {
       r.status = Status::kOk;
+    }
+    if (lidar_only) {
+      r.fit = coarse.fit;
+      r.motion_guess = coarse.name;
+      r.guesses_tried = coarse.tried;
+      if (coarse.fit < config.lidar_only.min_fit) {
+        std::ostringstream os;
+        os.precision(2);
+        os << "LiDAR-only: poor fit " << coarse.fit << " < " << config.lidar_only.min_fit
+           << " after " << coarse.tried << " guesses (best " << coarse.name
+           << "): the pose may be off";
+        r.status = Status::kDegenerate;
+        Append(&r.reason, os.str());
+      }
+      motion.Update(state.T_world_imu(), t_end);
     }
     r.pose_valid = true;
 
@@ -439,6 +489,120 @@ struct LioPpf::Impl {
     FillState(&r);
     r.timings.total = MsSince(t_total) + q.decode_ms;
     return r;
+  }
+
+  // kAuto: decides when the input says whether there is an IMU. Returns false while undecided
+  // (the scans wait: none is lost to the decision).
+  bool DecideImuMode(bool flush) {
+    if (lidar_only || lio_decided) return true;
+    if (config.imu_mode == ImuMode::kLio) {
+      lio_decided = true;
+      return true;
+    }
+    const bool none = config.imu_mode == ImuMode::kNone;
+    if (!none) {
+      if (scans.empty()) return true;
+      const double span = scans.back().stamp_s - scans.front().stamp_s;
+      if (!flush && span < config.imu_auto_wait_s) return false;
+    }
+    lidar_only = true;
+    initialized = true;
+    imu.clear();
+    std::ostringstream os;
+    os << (none ? "imu.mode none" : "no IMU data with the first scans")
+       << ": LiDAR-only mode (constant-velocity prediction, world = first scan's LiDAR frame)";
+    Log(LogLevel::kInfo, os.str());
+    return true;
+  }
+
+  // The first scan of a LiDAR-only map: the world is its LiDAR frame. Gravity cannot be observed,
+  // so it is set straight down in that frame only to make T_world_map the identity.
+  void StartLidarOnly(double t) {
+    state = NavState();
+    state.stamp_s = t;
+    const Eigen::Isometry3d T_world_imu = config.T_imu_lidar.inverse();
+    state.R_world_imu = T_world_imu.linear();
+    state.p_world_imu = T_world_imu.translation();
+    state.gravity_world = Eigen::Vector3d(0.0, 0.0, -9.80665);
+    state.P = StateCov::Identity() * 1e-6;
+    motion.Reset();
+  }
+
+  // The state at t_end from the constant-velocity model; biases, velocity and gravity are not
+  // observed and stay fixed (their covariance tiny and uncorrelated, so updates leave them).
+  void PredictConstantVelocity(double t_end, PoseTrace* trace) {
+    // Before the map's first scan there is nothing to extrapolate: StartLidarOnly's pose stands.
+    const Eigen::Isometry3d T = motion.has_pose() ? motion.Predict(t_end) : state.T_world_imu();
+    *trace = motion.Trace();
+    if (!motion.has_pose()) {
+      trace->knots.front().R = T.linear();
+      trace->knots.front().p = T.translation();
+    }
+    state.R_world_imu = T.linear();
+    state.p_world_imu = T.translation();
+    state.v_world = motion.velocity_world();
+    state.stamp_s = t_end;
+    gyro_at_scan_end = motion.angular_velocity();
+    SetLidarOnlyPrior();
+  }
+
+  void SetLidarOnlyPrior() {
+    const double rot = config.lidar_only.prior_rot_std;
+    const double pos = config.lidar_only.prior_pos_std;
+    state.P = StateCov::Identity() * 1e-6;
+    state.P.block<3, 3>(kRot, kRot).diagonal().setConstant(rot * rot);
+    state.P.block<3, 3>(kPos, kPos).diagonal().setConstant(pos * pos);
+  }
+
+  // The guesses of hypothesis_search.hpp around the model's prediction (state at t_end); the
+  // best aligned one becomes the prediction of the update and of the skeleton tracker.
+  CoarseAlignment AlignGuesses(double t_end) {
+    const Eigen::Isometry3d& T_il = config.T_imu_lidar;
+    const double dt = t_end - motion.stamp();
+    const Eigen::Isometry3d T_last = motion.pose();
+    const Eigen::Isometry3d T_cv = motion.Predict(t_end);
+    std::vector<MotionHypothesis> h;
+    h.push_back({"constant velocity", T_cv * T_il});
+    h.push_back({"no motion", T_last * T_il});
+    for (double scale : {0.5, 1.5}) {
+      Eigen::Isometry3d d = motion.Delta(dt);
+      d.linear() = SO3Exp(scale * SO3Log(d.linear()));
+      std::ostringstream os;
+      os << "turn x" << scale;
+      h.push_back({os.str(), T_last * d * T_il});
+    }
+    const double a = config.lidar_only.offset_deg * M_PI / 180.0;
+    auto turned = [&](const std::string& name, const Eigen::Vector3d& axis, double angle) {
+      Eigen::Isometry3d R = Eigen::Isometry3d::Identity();
+      R.linear() = SO3Exp(axis * angle);
+      h.push_back({name, T_cv * T_il * R});
+    };
+    if (a > 0.0) {
+      turned("turn z+", Eigen::Vector3d::UnitZ(), a);
+      turned("turn z-", Eigen::Vector3d::UnitZ(), -a);
+      turned("turn z++", Eigen::Vector3d::UnitZ(), 2 * a);
+      turned("turn z--", Eigen::Vector3d::UnitZ(), -2 * a);
+      turned("turn x+", Eigen::Vector3d::UnitX(), a);
+      turned("turn x-", Eigen::Vector3d::UnitX(), -a);
+      turned("turn y+", Eigen::Vector3d::UnitY(), a);
+      turned("turn y-", Eigen::Vector3d::UnitY(), -a);
+    }
+    LidarOnlyOptions options = config.lidar_only;
+    if (recent_fits.size() >= 3) {
+      std::vector<double> sorted(recent_fits.begin(), recent_fits.end());
+      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+      options.good_fit =
+          std::min(options.good_fit, options.good_fit_relative * sorted[sorted.size() / 2]);
+    }
+    CoarseAlignment c = AlignHypotheses(frame, h, options, config.iekf, config.knn);
+    recent_fits.push_back(c.fit);
+    if (recent_fits.size() > 10) recent_fits.pop_front();
+    const Eigen::Isometry3d T_world_imu = c.T_world_lidar * T_il.inverse();
+    state.R_world_imu = T_world_imu.linear();
+    state.p_world_imu = T_world_imu.translation();
+    frame.T_world_lidar_predicted = c.T_world_lidar;
+    SetLidarOnlyPrior();
+    return c;
   }
 
   // The IMU did not measure the motion during a gap: integration across it assumed the samples on
@@ -483,6 +647,11 @@ struct LioPpf::Impl {
   VoxelGridDownsampler downsampler;  // keeps its hash table between scans
   bool initialized = false;
   bool map_initialized = false;
+  bool lidar_only = false;         // decided: no IMU (DecideImuMode)
+  bool lio_decided = false;        // decided: the IMU predicts
+  ConstantVelocityModel motion;    // LiDAR-only prediction (IMU frame poses)
+  std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
+  size_t ignored_imu = 0;
   double map_init_stamp_s = 0.0;
   double last_imu_stamp = -std::numeric_limits<double>::infinity();
   double last_scan_end = -std::numeric_limits<double>::infinity();
@@ -528,5 +697,6 @@ const Config& LioPpf::config() const { return impl_->config; }
 const VoxelMap& LioPpf::map() const { return impl_->map; }
 const TimeFieldInfo& LioPpf::time_field_info() const { return impl_->decoder.info(); }
 bool LioPpf::initialized() const { return impl_->initialized; }
+bool LioPpf::lidar_only() const { return impl_->lidar_only; }
 
 }  // namespace ppf

@@ -54,6 +54,10 @@ std::unique_ptr<LioPpf> CoreExecutor::CreateCore(const NodeConfig& c, std::strin
   if (c.core_mode == "knn") core_config.mode = Mode::kKnn;
   if (c.core_mode == "ppf") core_config.mode = Mode::kPpf;
   core_config.output_deskewed_points = c.publish_registered_points;
+  // imu.mode auto would hold scans for imu.auto_wait and then run LiDAR-only for good, also when
+  // a live IMU driver merely starts late; the node's IMU-loss fallback is not built (issue 16),
+  // so here auto means lio. `imu.mode: none` in the core config runs the node LiDAR-only.
+  if (core_config.imu_mode == ImuMode::kAuto) core_config.imu_mode = ImuMode::kLio;
   core_config.log = [](LogLevel level, const std::string& msg) {
     const Level l = level == LogLevel::kError  ? Level::kError
                     : level == LogLevel::kWarn ? Level::kWarn

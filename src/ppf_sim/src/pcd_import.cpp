@@ -161,13 +161,17 @@ ImportSummary ImportPcdDirectory(const std::string& dir, const std::string& out_
     if (!listed.empty()) {
       stamp = listed[i];
       source = "stamps file";
+    } else if (opt.rate_hz > 0.0) {
+      stamp = static_cast<int64_t>(std::llround(static_cast<double>(i) / opt.rate_hz * 1e9));
+      source = "--rate (scan i at i / rate s)";
     } else if (EarliestAbsoluteTime(c, &stamp)) {
       source = "per-point absolute time (earliest point)";
     } else if (StampFromFileName(files[i], &stamp)) {
       source = "file name";
     } else {
-      throw std::runtime_error("no time for " + files[i] +
-                               ": no absolute per-point time, no --stamps, name not a time");
+      throw std::runtime_error(
+          "no time for " + files[i] +
+          ": no absolute per-point time, no --stamps or --rate, name not a time");
     }
     c.stamp_ns = stamp;
     c.frame_id = opt.lidar_frame;

@@ -210,5 +210,50 @@ TEST(PcdImport, RealPandar64Scans) {
   fs::remove(csv);
 }
 
+// Sweeps without any time (already motion-compensated keyframes, issue 16): the times come from a
+// TUM file's first column (its comment line skipped) or from --rate; with neither, a clear error.
+TEST(PcdImport, StampsFromTumFileOrRate) {
+  const fs::path dir = TempDir("pcd_untimed");
+  fs::create_directories(dir);
+  for (int i = 0; i < 3; ++i) {
+    std::ofstream f(dir / ("scan_00" + std::to_string(i) + ".pcd"));
+    f << "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+         "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 6\n";
+  }
+  const fs::path tum = TempDir("untimed_poses.tum");
+  {
+    std::ofstream f(tum);
+    f << "# timestamp tx ty tz qx qy qz qw\n";
+    f << std::fixed << std::setprecision(6);
+    for (int i = 0; i < 3; ++i) f << 1630577758.5 + 0.5 * i << " 0 0 0 0 0 0 1\n";
+  }
+  auto stamps = [](const fs::path& bag) {
+    std::vector<int64_t> out;
+    for (const auto& m : ReadAll(bag)) {
+      if (m.topic != "/points") continue;
+      CloudBuffer c;
+      std::string err;
+      EXPECT_TRUE(DecodePointCloud2(m.data.data(), m.data.size(), &c, &err)) << err;
+      out.push_back(c.stamp_ns);
+    }
+    return out;
+  };
+  PcdOptions opt;
+  opt.stamps_file = tum.string();
+  const fs::path out1 = TempDir("untimed_bag_tum");
+  ImportPcdDirectory(dir.string(), out1.string(), BagOutputOptions{}, opt);
+  EXPECT_EQ(stamps(out1), (std::vector<int64_t>{1630577758500000000LL, 1630577759000000000LL,
+                                                1630577759500000000LL}));
+  opt = PcdOptions();
+  opt.rate_hz = 2.0;
+  const fs::path out2 = TempDir("untimed_bag_rate");
+  ImportPcdDirectory(dir.string(), out2.string(), BagOutputOptions{}, opt);
+  EXPECT_EQ(stamps(out2), (std::vector<int64_t>{0, 500000000LL, 1000000000LL}));
+  const fs::path out3 = TempDir("untimed_bag_none");
+  EXPECT_THROW(ImportPcdDirectory(dir.string(), out3.string(), BagOutputOptions{}, PcdOptions()),
+               std::runtime_error);
+  for (const fs::path& p : {dir, tum, out1, out2, out3}) fs::remove_all(p);
+}
+
 }  // namespace
 }  // namespace ppf::sim

@@ -234,8 +234,9 @@ int main(int argc, char** argv) {
   options.on_topics_resolved = [&](const ppf::tools::BagSourceStats& s) {
     if (!args.quiet) {
       std::cerr << "ppf_offline: " << args.bag << ": " << s.points_topic << " ("
-                << s.total_scans_in_bag << " scans), " << s.imu_topic << ", mode "
-                << (config.mode == ppf::Mode::kPpf ? "ppf" : "knn") << "\n";
+                << s.total_scans_in_bag << " scans), "
+                << (s.imu_topic.empty() ? std::string("no IMU topic: LiDAR-only") : s.imu_topic)
+                << ", mode " << (config.mode == ppf::Mode::kPpf ? "ppf" : "knn") << "\n";
     }
   };
   options.on_progress = [&](size_t done, uint64_t total, double core_ms) {
@@ -304,10 +305,11 @@ int main(int argc, char** argv) {
   }
   if (!args.quiet) {
     const auto summary = ppf::tools::Summarize(results, wall_s);
-    ppf::tools::PrintSummary(std::cout, summary,
-                             std::string("ppf_offline (") +
-                                 (config.mode == ppf::Mode::kPpf ? "ppf" : "knn") + "): " +
-                                 std::to_string(trajectory.size()) + " poses -> " + args.out);
+    ppf::tools::PrintSummary(
+        std::cout, summary,
+        std::string("ppf_offline (") + (config.mode == ppf::Mode::kPpf ? "ppf" : "knn") +
+            (run.lidar_only ? ", LiDAR-only" : "") + "): " + std::to_string(trajectory.size()) +
+            " poses -> " + args.out);
     if (source_stats.malformed > 0) {
       std::cout << "  skipped malformed messages: " << source_stats.malformed << "\n";
     }

@@ -32,8 +32,19 @@ BagSourceStats StreamBag(const std::string& bag_path, const BagSourceOptions& op
   bag::Reader reader(bag_path);
   BagSourceStats stats;
   stats.points_topic = Resolve(reader.Info(), options.points_topic, kCloudType, &stats.total_scans_in_bag);
-  stats.imu_topic = Resolve(reader.Info(), options.imu_topic, kImuType, nullptr);
-  reader.SetTopicFilter({stats.points_topic, stats.imu_topic});
+  // A bag without IMU messages is a LiDAR-only input (imu_topic stays empty): no IMU topic, or
+  // one without messages (ppf_import_pcd without --imu writes such a topic). A named topic that
+  // is missing is still an error.
+  bool has_imu = !options.imu_topic.empty();
+  for (const auto& t : reader.Info().topics) has_imu = has_imu || t.info.type == kImuType;
+  uint64_t imu_messages = 0;
+  if (has_imu) stats.imu_topic = Resolve(reader.Info(), options.imu_topic, kImuType, &imu_messages);
+  if (imu_messages == 0) stats.imu_topic.clear();
+  if (stats.imu_topic.empty()) {
+    reader.SetTopicFilter({stats.points_topic});
+  } else {
+    reader.SetTopicFilter({stats.points_topic, stats.imu_topic});
+  }
   if (cb.on_topics_resolved) cb.on_topics_resolved(stats);
 
   bag::Message msg;
@@ -45,7 +56,7 @@ BagSourceStats StreamBag(const std::string& bag_path, const BagSourceOptions& op
     if (cb.on_error) cb.on_error(what);
   };
   while (reader.Next(msg)) {
-    if (msg.topic == stats.imu_topic) {
+    if (!stats.imu_topic.empty() && msg.topic == stats.imu_topic) {
       if (!msgs::DecodeCdr(msg.data, &imu, &error)) {
         report("IMU message at " + std::to_string(msg.timestamp_ns) + " ns: " + error);
         continue;

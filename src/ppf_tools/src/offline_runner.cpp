@@ -1,6 +1,7 @@
 #include "ppf_tools/offline_runner.hpp"
 
 #include <chrono>
+#include <memory>
 #include <utility>
 
 namespace ppf::tools {
@@ -8,7 +9,14 @@ namespace ppf::tools {
 OfflineRun RunOffline(const std::string& bag_path, const Config& config,
                       const OfflineOptions& options) {
   OfflineRun run;
-  LioPpf lio(config);
+  // Created once the bag's topics are known: a bag without an IMU topic runs LiDAR-only at once
+  // (imu.mode auto), instead of holding scans for imu.auto_wait to find out.
+  std::unique_ptr<LioPpf> lio;
+  auto make = [&](bool has_imu) {
+    Config c = config;
+    if (!has_imu && c.imu_mode == ImuMode::kAuto) c.imu_mode = ImuMode::kNone;
+    lio = std::make_unique<LioPpf>(c);
+  };
   uint64_t total_scans = 0;
   double core_ms = 0.0;
   auto consume = [&](std::vector<ScanResult>&& batch) {
@@ -26,18 +34,21 @@ OfflineRun RunOffline(const std::string& bag_path, const Config& config,
   BagSourceCallbacks callbacks;
   callbacks.on_topics_resolved = [&](const BagSourceStats& s) {
     total_scans = s.total_scans_in_bag;
+    make(!s.imu_topic.empty());
     if (options.on_topics_resolved) options.on_topics_resolved(s);
   };
-  callbacks.on_imu = [&](const ImuSample& s) { lio.AddImu(s); };
+  callbacks.on_imu = [&](const ImuSample& s) { lio->AddImu(s); };
   callbacks.on_scan = [&](const CloudView& v) {
-    lio.AddScan(v);
-    consume(lio.Process());
+    lio->AddScan(v);
+    consume(lio->Process());
   };
   callbacks.on_error = options.on_error;
 
   const auto t0 = std::chrono::steady_clock::now();
   run.source = StreamBag(bag_path, options.source, callbacks);
-  consume(lio.Process(/*flush=*/true));
+  if (!lio) make(true);  // no topics resolved: nothing was streamed
+  consume(lio->Process(/*flush=*/true));
+  run.lidar_only = lio->lidar_only();
   run.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return run;
 }

@@ -28,7 +28,8 @@ void WriteStatsCsvHeader(std::ostream& os) {
         "map_size,input_points,valid_points,downsampled_points,skeleton_points,"
         "scattered_points,discarded_points,knn_residuals,skeleton_residuals,map_inserted,"
         "skeleton_patches,gyro_bias_x,gyro_bias_y,gyro_bias_z,acc_bias_x,acc_bias_y,acc_bias_z,"
-        "gravity_map_x,gravity_map_y,gravity_map_z\n";
+        "gravity_map_x,gravity_map_y,gravity_map_z,skeleton_planes,fit,motion_guess,"
+        "guesses_tried,t_guesses_ms\n";
 }
 
 void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
@@ -47,6 +48,9 @@ void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
   for (int i = 0; i < 3; ++i) os << ',' << r.gyro_bias(i);
   for (int i = 0; i < 3; ++i) os << ',' << r.acc_bias(i);
   for (int i = 0; i < 3; ++i) os << ',' << r.gravity_map(i);
+  // LiDAR-only (lio_ppf.hpp): how well the scan fit the map and which guess won.
+  os << ',' << r.skeleton_planes.size() << std::setprecision(3) << ',' << r.fit << ','
+     << Quoted(r.motion_guess, '"') << ',' << r.guesses_tried << ',' << t.guesses;
   os << '\n';
 }
 

@@ -18,6 +18,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "ppf_core/hypothesis_search.hpp"
 #include "ppf_core/iekf.hpp"
 #include "ppf_core/imu_init.hpp"
 #include "ppf_core/imu_propagation.hpp"
@@ -30,6 +31,12 @@
 namespace ppf {
 
 enum class Mode { kKnn, kPpf };
+
+// Where the prediction comes from (lio_ppf.hpp, "LiDAR-only"). kLio: the IMU (static
+// initialization first). kNone: no IMU; a constant-velocity model and several registration
+// guesses (hypothesis_search.hpp); IMU samples are ignored. kAuto: kLio as soon as an IMU sample
+// arrives; kNone if scans spanning imu_auto_wait_s (or the whole input, at flush) came without one.
+enum class ImuMode { kAuto, kLio, kNone };
 
 struct Config {
   Mode mode = Mode::kKnn;
@@ -49,6 +56,11 @@ struct Config {
   double map_radius = 150.0;     // voxels farther than this from the sensor are dropped; 0 = off
 
   // --- IMU -------------------------------------------------------------------------------------
+  ImuMode imu_mode = ImuMode::kAuto;
+  // Seconds of scans without any IMU sample after which kAuto decides "no IMU". Scans wait (are
+  // not lost) meanwhile. Long enough for an IMU driver that starts a moment after the LiDAR's.
+  double imu_auto_wait_s = 2.0;
+  LidarOnlyOptions lidar_only;  // imu_mode none (hypothesis_search.hpp), YAML section lidar_only:
   ImuInitOptions init;         // static initialization (imu_init.hpp)
   ImuNoise noise;              // continuous-time noise densities (imu_propagation.hpp)
   double max_imu_gap_s = 0.5;  // longer gaps between IMU samples are bridged or reset the filter

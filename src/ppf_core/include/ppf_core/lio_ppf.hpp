@@ -33,6 +33,22 @@
 // before that return Status::kInitializing. Motion during that window restarts the collection.
 // The first scan after initialization builds the map (Status::kOk, reason "map initialized").
 //
+// LiDAR-only (Config::imu_mode none, or kAuto when scans spanning imu_auto_wait_s came without an
+// IMU sample; ppf_offline decides at once from a bag without an IMU topic): no static
+// initialization, the first scan builds the map. The prediction is a constant-velocity model of
+// the last two registered poses (motion_model.hpp); points with their own time are de-skewed from
+// it. Each scan is first aligned coarsely from several guesses (the model, no motion, the model's
+// turn scaled or turned further; hypothesis_search.hpp) and the best-fitting one becomes the
+// prediction of the usual update and of the skeleton tracker. Gravity is unobservable: the world
+// frame is the first scan's LiDAR frame (z is the LiDAR's z then, not "up"), T_world_map stays
+// the identity and velocity, biases and gravity are not estimated (velocity_world and
+// angular_velocity report the model's). ScanResult::fit says how well the scan fit the map; a fit
+// below lidar_only.min_fit is Status::kDegenerate with the reason. The mode is decided once per
+// object: switching mid-run (IMU lost) is not done here; the state and map carry over cleanly in
+// principle (the map frame is the filter's "world" in both modes), but a LIO run that loses its IMU
+// would need the constant-velocity model seeded from its last poses and, back to LIO, a fresh
+// gravity/bias estimate without a static start (see the report of issue 16).
+//
 // Time glitches: an IMU sample or scan older than the previous one (bag loop), or an IMU gap
 // longer than max_imu_gap_bridge_s, resets the filter and the map (Status::kReset with the
 // reason) and initialization starts over. A shorter gap that still exceeds max_imu_gap_s (a
@@ -77,10 +93,11 @@ const char* StatusName(Status status);
 
 // Milliseconds. preprocess = decoding the cloud (layout, per-point time); downsample = stride and
 // range filter + voxel grid on the raw points; deskew = IMU propagation + de-skew of the
-// downsampled points (preprocess.hpp explains the order).
+// downsampled points (preprocess.hpp explains the order). guesses = LiDAR-only coarse alignment
+// of the motion guesses (hypothesis_search.hpp), 0 with an IMU.
 struct StageTimings {
   double preprocess = 0, deskew = 0, downsample = 0, ppf = 0, residuals = 0, update = 0,
-         map_insert = 0, total = 0;
+         map_insert = 0, total = 0, guesses = 0;
 };
 
 struct ScanResult {
@@ -140,6 +157,12 @@ struct ScanResult {
   // that initializes the map), so a plot can show the skeleton points next to their planes.
   std::vector<PointLabel> deskewed_point_labels;
 
+  // LiDAR-only: the share of scan points on a map plane after the coarse alignment
+  // (hypothesis_search.hpp), the guess it came from and how many guesses were aligned.
+  double fit = 0.0;
+  std::string motion_guess;
+  int guesses_tried = 0;
+
   int iterations = 0;
   bool converged = false;
   Eigen::Vector3d eig_rotation = Eigen::Vector3d::Zero();     // J^T J, ascending
@@ -176,6 +199,7 @@ class LioPpf {
   const VoxelMap& map() const;
   const TimeFieldInfo& time_field_info() const;
   bool initialized() const;
+  bool lidar_only() const;  // LiDAR-only mode decided (imu.mode none, or auto without IMU)
 
  private:
   struct Impl;

@@ -40,11 +40,13 @@ double AzimuthTime(double x, double y, double period);
 
 // ---- PCD directory ----------------------------------------------------------------------
 // Every *.pcd in DIR in name order, fields kept exactly as in the file. The header stamp (scan
-// start) comes from, in this order: --stamps FILE (one time per scan, s or ns), a per-point
-// absolute time field (F64 `timestamp`/`time`/`t` > 1e9 s: the earliest point), or the file
-// name (19-digit ns, "sec.frac", or "YYYY-MM-DD-HH-MM-SS-mmm" read as UTC).
+// start) comes from, in this order: --stamps FILE (one time per scan, s or ns: the first column
+// of each line, so a TUM trajectory with one row per scan serves), --rate HZ (scan i at i/HZ s), a
+// per-point absolute time field (F64 `timestamp`/`time`/`t` > 1e9 s: the earliest point), or the
+// file name (19-digit ns, "sec.frac", or "YYYY-MM-DD-HH-MM-SS-mmm" read as UTC).
 struct PcdOptions {
   std::string stamps_file;  // optional
+  double rate_hz = 0.0;     // > 0 and no stamps_file: scan i at i / rate_hz seconds
   std::string imu_csv;      // optional: t,wx,wy,wz,ax,ay,az (t in s, or ns if > 1e14)
   double scan_period = 0.1; // bag time of a cloud = stamp + period (scan end)
   std::string lidar_frame = "lidar";

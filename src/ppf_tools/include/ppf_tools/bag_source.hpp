@@ -22,7 +22,7 @@ struct BagSourceStats {
   uint64_t malformed = 0;  // messages that failed to decode (reported through on_error)
   uint64_t total_scans_in_bag = 0;
   std::string points_topic;
-  std::string imu_topic;
+  std::string imu_topic;  // empty: the bag has no IMU topic (LiDAR-only input)
 };
 
 struct BagSourceCallbacks {

@@ -17,6 +17,7 @@ struct OfflineRun {
   Trajectory trajectory;            // poses of scans with pose_valid, in `frame`
   BagSourceStats source;
   double wall_s = 0.0;
+  bool lidar_only = false;  // the core ran without IMU (imu.mode none, or a bag without IMU)
 };
 
 struct OfflineOptions {

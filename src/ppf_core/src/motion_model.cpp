@@ -1,0 +1,44 @@
+#include "ppf_core/motion_model.hpp"
+
+#include "ppf_core/so3.hpp"
+
+namespace ppf {
+
+void ConstantVelocityModel::Reset() { *this = ConstantVelocityModel(); }
+
+void ConstantVelocityModel::Update(const Eigen::Isometry3d& T_world_body, double t) {
+  if (has_pose_ && t > t_ + 1e-6) {
+    const Eigen::Isometry3d d = T_.inverse() * T_world_body;
+    const double dt = t - t_;
+    omega_ = SO3Log(d.linear()) / dt;
+    v_body_ = d.translation() / dt;
+    has_twist_ = true;
+  }
+  T_ = T_world_body;
+  t_ = t;
+  has_pose_ = true;
+}
+
+Eigen::Isometry3d ConstantVelocityModel::Delta(double dt) const {
+  Eigen::Isometry3d d = Eigen::Isometry3d::Identity();
+  if (!has_twist_) return d;
+  d.linear() = SO3Exp(omega_ * dt);
+  d.translation() = v_body_ * dt;
+  return d;
+}
+
+PoseTrace ConstantVelocityModel::Trace() const {
+  PoseTrace trace;
+  ImuKnot k;
+  k.t = t_;
+  k.R = T_.linear();
+  k.p = T_.translation();
+  k.v = velocity_world();
+  k.omega = omega_;
+  // Delta() translates along the start orientation's body axes, PoseAt() along k.v in the world:
+  // the same vector, so the trace and Predict() agree at every time of the segment.
+  trace.knots.push_back(k);
+  return trace;
+}
+
+}  // namespace ppf

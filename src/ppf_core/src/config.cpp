@@ -178,6 +178,8 @@ ConfigTable CoreConfigTable(Config* c) {
   PpfConfig* p = &c->ppf;
   t.Add("ppf.plane_least_inliers", &p->plane_least_inliers);
   t.Add("ppf.incremental_fitting", &p->incremental_fitting);
+  t.Add("ppf.max_band_rms_ratio", &p->max_band_rms_ratio);
+  t.Add("ppf.min_elevation_spread_deg", &p->min_elevation_spread_deg);
   t.Add("ppf.delta", &p->delta);
   t.Add("ppf.semi_band_factor", &p->semi_band_factor);
   t.Add("ppf.point_to_plane_thresh", &p->point_to_plane_thresh);

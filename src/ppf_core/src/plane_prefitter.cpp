@@ -30,9 +30,56 @@ const char* PrefitStopName(PrefitStop stop) {
 // `config` was validated once, by the facade (ValidateConfig in config.cpp).
 PlanePrefitter::PlanePrefitter(const PpfConfig& config) : config_(config) {}
 
+bool PlanePrefitter::SplitAndCheckShape(const Plane& plane) {
+  SplitSandwich(remaining_, plane, config_.delta, config_.semi_band_factor, &split_);
+  // Thickness first: it needs no trigonometry and rejects most slabs through vegetation.
+  if (config_.max_band_rms_ratio > 0.0 && !split_.strict.empty()) {
+    double sum = 0.0, sum2 = 0.0;
+    for (int pos : split_.strict) {
+      const double e = plane.SignedDistance(Eigen::Vector3d(remaining_[pos].cast<double>()));
+      sum += e;
+      sum2 += e * e;
+    }
+    const double n = static_cast<double>(split_.strict.size());
+    const double var = std::max(0.0, sum2 / n - (sum / n) * (sum / n));
+    if (std::sqrt(var) > config_.max_band_rms_ratio * config_.delta) return false;
+  }
+  if (!(config_.min_elevation_spread_deg > 0.0)) return true;
+  // The scan is in the LiDAR frame here, so each beam has one elevation angle whatever the
+  // sensor's attitude; this holds for a tilted or hand-held sensor too. Percentiles, not the
+  // extremes: a few points of a neighbouring beam (or noise) inside the band must not make one
+  // beam's circle look like a surface.
+  elevation_.clear();
+  elevation_.reserve(split_.strict.size());
+  for (int pos : split_.strict) {
+    const Eigen::Vector3f& p = remaining_[pos];
+    elevation_.push_back(std::atan2(p.z(), std::hypot(p.x(), p.y())));
+  }
+  if (elevation_.size() < 2) return false;
+  const auto at = [&](double q) {
+    const size_t k = static_cast<size_t>(q * static_cast<double>(elevation_.size() - 1));
+    std::nth_element(elevation_.begin(), elevation_.begin() + k, elevation_.end());
+    return static_cast<double>(elevation_[k]);
+  };
+  const double spread_deg = (at(0.95) - at(0.05)) * 180.0 / M_PI;
+  return spread_deg >= config_.min_elevation_spread_deg;
+}
+
+void PlanePrefitter::Reject(const Plane& plane, PrefitResult* result) {
+  SplitSandwich(remaining_, plane, config_.delta, 1.0, &split_);
+  for (int pos : split_.strict) result->scattered_indices.push_back(remaining_index_[pos]);
+  next_points_.clear();
+  next_index_.clear();
+  for (int pos : split_.outliers) {
+    next_points_.push_back(remaining_[pos]);
+    next_index_.push_back(remaining_index_[pos]);
+  }
+  remaining_.swap(next_points_);
+  remaining_index_.swap(next_index_);
+}
+
 void PlanePrefitter::Accept(const Plane& plane, bool from_guess, int64_t track_id,
                             int ipca_iterations, PrefitResult* result) {
-  SplitSandwich(remaining_, plane, config_.delta, config_.semi_band_factor, &split_);
   const int plane_id = static_cast<int>(result->planes.size());
   FittedPlane fitted;
   fitted.plane = plane;
@@ -118,6 +165,11 @@ void PlanePrefitter::Fit(const std::vector<Eigen::Vector3f>& points,
       const IpcaResult refined = RefinePlaneIpca(remaining_, guess.plane, config_.delta,
                                                  config_.ipca_iterations_guess, least);
       if (!refined.success) continue;
+      // A rejected guess leaves its points for RANSAC, like any other failed guess.
+      if (!SplitAndCheckShape(refined.plane)) {
+        ++result->shape_rejected;
+        continue;
+      }
       ++result->guesses_accepted;
       Accept(refined.plane, true, guess.track_id, refined.iterations, result);
     }
@@ -142,22 +194,19 @@ void PlanePrefitter::Fit(const std::vector<Eigen::Vector3f>& points,
     const IpcaResult refined =
         RefinePlaneIpca(remaining_, fit.plane, config_.delta, config_.ipca_iterations_new, least);
     if (refined.success) {
-      Accept(refined.plane, false, -1, refined.iterations, result);
-      continue;
+      if (SplitAndCheckShape(refined.plane)) {
+        Accept(refined.plane, false, -1, refined.iterations, result);
+        continue;
+      }
+      ++result->shape_rejected;
+    } else {
+      ++result->refine_failures;
     }
-    // Ambiguous surface (oscillating or collapsing refinement): no skeleton plane here. Its band
-    // goes to the scattered set, where kNN handles it, and fitting continues on the rest.
-    ++result->refine_failures;
-    SplitSandwich(remaining_, fit.plane, config_.delta, 1.0, &split_);
-    for (int pos : split_.strict) result->scattered_indices.push_back(remaining_index_[pos]);
-    next_points_.clear();
-    next_index_.clear();
-    for (int pos : split_.outliers) {
-      next_points_.push_back(remaining_[pos]);
-      next_index_.push_back(remaining_index_[pos]);
-    }
-    remaining_.swap(next_points_);
-    remaining_index_.swap(next_index_);
+    // Ambiguous surface (oscillating or collapsing refinement) or not a surface: no skeleton
+    // plane here. The RANSAC plane's band goes to the scattered set, where kNN handles it, and
+    // fitting continues on the rest. That band holds at least plane_least_inliers points, so the
+    // loop always makes progress.
+    Reject(fit.plane, result);
   }
 
   result->scattered_indices.insert(result->scattered_indices.end(), remaining_index_.begin(),

@@ -59,6 +59,12 @@ std::vector<std::string> ValidatePpfConfig(PpfConfig* c) {
       &c->skeleton_normal_gate_deg, d.skeleton_normal_gate_deg, "skeleton_normal_gate_deg", &notes);
   Fix(c->plane_least_inliers < 3, &c->plane_least_inliers, d.plane_least_inliers,
       "plane_least_inliers", &notes);
+  Fix(!std::isfinite(c->min_elevation_spread_deg) || c->min_elevation_spread_deg < 0.0 ||
+          c->min_elevation_spread_deg > 90.0,
+      &c->min_elevation_spread_deg, d.min_elevation_spread_deg, "min_elevation_spread_deg",
+      &notes);
+  Fix(!std::isfinite(c->max_band_rms_ratio) || c->max_band_rms_ratio < 0.0,
+      &c->max_band_rms_ratio, d.max_band_rms_ratio, "max_band_rms_ratio", &notes);
   Fix(c->max_planes_per_scan < 0, &c->max_planes_per_scan, d.max_planes_per_scan,
       "max_planes_per_scan", &notes);
   Fix(!std::isfinite(c->min_remaining_ratio) || c->min_remaining_ratio < 0.0 ||

@@ -53,6 +53,9 @@ int CrossPlaneMatches(double semi_band_factor, int* slope_skeleton_points) {
   cfg.semi_band_factor = semi_band_factor;
   cfg.plane_least_inliers = 150;
   cfg.min_remaining_ratio = 0.0;  // let it fit the slope too
+  // The patches are not LiDAR-sampled: the ground lies in the sensor's horizontal plane, where a
+  // real LiDAR would see it with one beam at most, and the beam-spread test rightly refuses it.
+  cfg.min_elevation_spread_deg = 0.0;
   PlanePrefitter prefitter(cfg);
   PrefitResult res;
   prefitter.Fit(pts, {}, &res);

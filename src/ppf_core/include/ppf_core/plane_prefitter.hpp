@@ -63,6 +63,10 @@ struct PrefitResult {
   int ransac_runs = 0;
   int ransac_iterations = 0;  // scored hypotheses over all runs
   int refine_failures = 0;    // RANSAC planes whose iPCA failed; their band went to Theta
+  // Candidates (RANSAC or guess) that failed a shape test (max_band_rms_ratio: a slab through
+  // scattered points; min_elevation_spread_deg: one beam's circle); a rejected RANSAC plane's band
+  // went to Theta.
+  int shape_rejected = 0;
 };
 
 class PlanePrefitter {
@@ -77,9 +81,15 @@ class PlanePrefitter {
            PrefitResult* result);
 
  private:
-  // Removes the sandwich of `plane` from the working set; records the plane.
+  // Splits the working set by the sandwich of `plane` (into split_) and returns whether its strict
+  // inliers pass the shape tests (max_band_rms_ratio, min_elevation_spread_deg; ppf_config.hpp).
+  bool SplitAndCheckShape(const Plane& plane);
+  // Removes the sandwich of `plane` (split_, from SplitAndCheckShape) from the working set;
+  // records the plane.
   void Accept(const Plane& plane, bool from_guess, int64_t track_id, int ipca_iterations,
               PrefitResult* result);
+  // Moves the strict band of `plane` to the scattered points and keeps the rest for later rounds.
+  void Reject(const Plane& plane, PrefitResult* result);
 
   PpfConfig config_;
   // Working set: remaining points (compact copy, cache-friendly) and their input indices.
@@ -88,6 +98,7 @@ class PlanePrefitter {
   std::vector<Eigen::Vector3f> next_points_;
   std::vector<int> next_index_;
   SandwichSplit split_;
+  std::vector<float> elevation_;  // scratch of SplitAndCheckShape, radians
 };
 
 }  // namespace ppf

@@ -85,6 +85,26 @@ struct PpfConfig {
   // Paper: worth it for >= 64 beams (~6 ms -> ~1.5 ms). PpfConfigForBeams() enables it from 32
   // beams up (measured, see ppf_config.cpp); this plain default is the 16-beam one (off).
   bool incremental_fitting = false;
+  // Shape tests of a candidate plane (RANSAC or guess), not in the paper. RANSAC scores a plane
+  // by its inlier count alone, and with a band as wide as delta a count can come from things that
+  // are not surfaces. A rejected RANSAC candidate is treated like a failed refinement: its band
+  // goes to the scattered points (kNN), so nothing is lost; a rejected guess is skipped. Both
+  // tests are measured in README.md (fake skeleton planes); 0 turns a test off (the paper).
+  //
+  // Thickness: reject when the RMS distance of the strict inliers from the plane exceeds this
+  // fraction of delta. Points of a surface crowd the middle of the band; a slab cut through a
+  // volume of scattered points (tree canopies, bushes, rough lawn) fills it evenly, RMS
+  // delta / sqrt(3), and a slab through all the crowns around the sensor collects as many inliers
+  // as a wall. Such a slab is labelled skeleton and anchors map patches with a normal the points
+  // do not have.
+  double max_band_rms_ratio = 0.5;
+  // Beam spread: reject when the strict inliers' elevation angles in the LiDAR frame,
+  // atan2(z, hypot(x, y)), span less than this many degrees between their 5th and 95th
+  // percentiles. The points one beam returns from walls or trees at similar range lie on a
+  // circle or arc that is planar within delta; that "plane" is attached to the sensor, not the
+  // world. A surface seen by a multi-beam LiDAR is crossed by several beams. Must exceed the
+  // spacing of two adjacent beams of the sensor.
+  double min_elevation_spread_deg = 3.0;
 
   // --- RANSAC ----------------------------------------------------------------------------------
   int ransac_max_iterations = 300;          // cap on the adaptive k = log(1-p)/log(1-w^3)

@@ -38,13 +38,15 @@ class Faults : public ::testing::Test {
     sim_ = ppf::test::FindTool("ppf_sim", PPF_SIM_CONFIGURED);
     if (sim_.empty()) return;
     dir_ = ppf::test::TempDir("ppf_dds_faults");
-    // 10 s indoors with a VLP-16, at rest for the first 8 s: a node started mid-run can still
-    // initialize (it needs 1 s at rest) before the motion starts (measured: a node started 2.5 s
-    // into the replay received data from ~5.3 s of the bag on; discovery takes a while).
+    // 20 s indoors with a VLP-16, at rest for the first 16 s: a node started mid-run can still
+    // initialize (it needs 1 s at rest) before the motion starts. A node started 2 s into the
+    // replay usually receives data from ~5 s of the bag on, but in 2 of about 25 runs it received
+    // nothing before the 10 s a shorter bag lasted: the running replay can take longer than that
+    // to match a restarted node's readers (issue 12), so the window is twice as long.
     ASSERT_TRUE(
         ppf::test::SimulateSequence(sim_,
-                                    {"--scene", "indoor", "--lidar", "vlp16", "--duration", "10",
-                                     "--static", "8", "--seed", "4", "--storage", "mcap"},
+                                    {"--scene", "indoor", "--lidar", "vlp16", "--duration", "20",
+                                     "--static", "16", "--seed", "4", "--storage", "mcap"},
                                     dir_ + "/bag", dir_ + "/sim.log"));
     for (const auto& t : ppf::bag::ReadInfo(dir_ + "/bag").topics) {
       if (t.info.name == "/points") clouds_ = static_cast<int>(t.message_count);
@@ -55,7 +57,7 @@ class Faults : public ::testing::Test {
   }
   void SetUp() override {
     if (sim_.empty()) GTEST_SKIP() << "ppf_sim not found (PATH or configure time): build ppf_sim";
-    ASSERT_GE(clouds_, 95);
+    ASSERT_GE(clouds_, 195);
   }
 
   // A run directory, a node config on the loopback test profile, and the common tool arguments.
@@ -226,7 +228,7 @@ TEST_F(Faults, NodeRestartedWhileReplayRunsAndRecordersStartedBeforeAndAfterIt) 
   const std::vector<double> t = TumStamps(dir + "/node.tum");
   EXPECT_EQ(static_cast<double>(t.size()), b_published);
   ASSERT_FALSE(t.empty());
-  EXPECT_GT(t.back(), 1700000000.0 + 9.8);  // ppf_sim's default start time + the bag's end
+  EXPECT_GT(t.back(), 1700000000.0 + 19.8);  // ppf_sim's default start time + the bag's end
   // Recorder 1 kept recording across the crash: A's odometry and all of B's.
   EXPECT_GE(before, b_published + 5);
   // Recorder 2 matched B within B's 1 s of initialization: all (or nearly all) of B's.

@@ -43,11 +43,7 @@ source_setup() {
 }
 
 clean_stale_shm() {
-  # As in scripts/test.sh: Fast DDS segments of killed processes that nobody maps any more.
-  for f in /dev/shm/fastrtps_* /dev/shm/sem.fastrtps_*; do
-    [ -e "$f" ] || continue
-    if ! grep -qsF "$f" /proc/[0-9]*/maps 2>/dev/null; then rm -f "$f"; fi
-  done
+  "$ROOT/scripts/clean_stale_shm.sh"
 }
 
 build() {  # build <build-base> <install-base> <cache file> <colcon package selection...>

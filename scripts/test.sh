@@ -24,13 +24,9 @@ set -u
 # results of earlier runs must not be counted again
 rm -rf build/*/Testing build-asan/*/Testing build-tsan/*/Testing
 
-# Fast DDS shared-memory segments left by processes that were killed (a failed test, a crash)
-# stay in /dev/shm and can collide with the ports of new test participants. Remove only those
-# that no running process has mapped: a live ROS 2 graph on this machine keeps its segments.
-for f in /dev/shm/fastrtps_* /dev/shm/sem.fastrtps_*; do
-  [ -e "$f" ] || continue
-  if ! grep -qsF "$f" /proc/[0-9]*/maps 2>/dev/null; then rm -f "$f"; fi
-done
+# Fast DDS shared-memory files left by killed processes can collide with the ports of new test
+# participants; the script removes only names no running process maps or holds open.
+scripts/clean_stale_shm.sh
 echo "[test] running colcon test"
 colcon test --parallel-workers 1 \
   --event-handlers console_cohesion- console_direct- \

@@ -8,6 +8,8 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -52,8 +54,19 @@ class Faults : public ::testing::Test {
       if (t.info.name == "/points") clouds_ = static_cast<int>(t.message_count);
     }
   }
+  // The suite's directory goes only when every test passed: a failed test's logs (node, replay,
+  // recorders) are what says why, and CI shows only the test's own output.
   static void TearDownTestSuite() {
-    if (!dir_.empty()) std::system(("rm -rf '" + dir_ + "'").c_str());
+    if (!dir_.empty() && !failed_) std::system(("rm -rf '" + dir_ + "'").c_str());
+  }
+  void TearDown() override {
+    if (!HasFailure()) return;
+    failed_ = true;
+    if (run_dir_.empty()) return;
+    std::printf("logs kept in %s; their last lines:\n", run_dir_.c_str());
+    std::fflush(stdout);
+    std::system(("for f in '" + run_dir_ + "'/*.log; do echo \"== $f\"; tail -n 25 \"$f\"; done")
+                    .c_str());
   }
   void SetUp() override {
     if (sim_.empty()) GTEST_SKIP() << "ppf_sim not found (PATH or configure time): build ppf_sim";
@@ -63,6 +76,7 @@ class Faults : public ::testing::Test {
   // A run directory, a node config on the loopback test profile, and the common tool arguments.
   std::string NewRun(const std::string& name, int domain) {
     const std::string dir = dir_ + "/" + name;
+    run_dir_ = dir;
     mkdir(dir.c_str(), 0755);
     std::ofstream cfg(dir + "/node.yaml");
     cfg << "dds: {domain_id: " << domain << ", profiles_file: \"" << kProfiles
@@ -117,10 +131,13 @@ class Faults : public ::testing::Test {
 
   static std::string sim_, dir_;
   static int clouds_;
+  static bool failed_;
+  std::string run_dir_;
   std::vector<std::string> dds_;
 };
 std::string Faults::sim_, Faults::dir_;
 int Faults::clouds_ = 0;
+bool Faults::failed_ = false;
 
 // Stamps of a TUM file and how often they jump back.
 std::vector<double> TumStamps(const std::string& path) {

@@ -262,9 +262,9 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(c->noise.gravity_dir >= 0.0), "imu.gravity_dir_noise", &c->noise.gravity_dir, 0.0);
   fix(c->iekf.max_iterations < 1, "iekf.max_iterations", &c->iekf.max_iterations, 1);
   fix(c->iekf.max_iterations > 30, "iekf.max_iterations", &c->iekf.max_iterations, 30);
-  fix(!(c->iekf.laser_point_std > 0.0), "iekf.laser_point_std", &c->iekf.laser_point_std, 0.03);
+  fix(!(c->iekf.laser_point_std > 0.0), "iekf.laser_point_std", &c->iekf.laser_point_std, 0.3);
   fix(!(c->iekf.laser_angular_std >= 0.0), "iekf.laser_angular_std", &c->iekf.laser_angular_std,
-      0.005);
+      0.05);
   fix(!(c->iekf.refined_gate >= 0.0), "iekf.refined_gate", &c->iekf.refined_gate, 0.1);
   fix(!(c->iekf.refined_gate_after_s >= 0.0), "iekf.refined_gate_after",
       &c->iekf.refined_gate_after_s, 3.0);

@@ -220,10 +220,13 @@ INSTANTIATE_TEST_SUITE_P(
         Case{"park_hdl32_knn", "--scene park --lidar hdl32", "hdl32", 12, kKnn, 1.0, 0},
         Case{"park_hdl32_ppf", "--scene park --lidar hdl32", "hdl32", 12, kPpf, 1.0, 0},
         Case{"ramps_hdl32_ppf", "--scene ramps --lidar hdl32", "hdl32", 12, kPpf, 0.5, 0},
+        // Hand-held shake (up to 150 deg/s) turns the accelerometer bias early: issue 11's bounds
+        // from 10 s on, as the issue states them. Both runs tilted beyond 0.2 deg while the rows
+        // of a scan were counted as independent (iekf.hpp, laser_point_std).
         Case{"handheld_indoor_vlp16_knn", "--scene indoor --lidar vlp16 --motion handheld", "vlp16",
-             12, kKnn, 0, 0.05},
+             20, kKnn, 0, 0.05, 10},
         Case{"handheld_indoor_vlp16_ppf", "--scene indoor --lidar vlp16 --motion handheld", "vlp16",
-             12, kPpf, 0, 0.05}),
+             20, kPpf, 0, 0.05, 10}),
     [](const ::testing::TestParamInfo<Case>& info) { return info.param.name; });
 
 }  // namespace

@@ -29,12 +29,21 @@ struct IekfOptions {
   int max_iterations = 4;
   double convergence_rot_rad = 1e-4;  // |dtheta| below this ...
   double convergence_trans_m = 1e-3;  // ... and |dp| below this: converged
-  double laser_point_std = 0.03;      // metres, noise of one point-to-plane row (weight 1)
+  // Metres: the noise of one point-to-plane row (weight 1) as the update counts it. Far above one
+  // return's range noise on purpose: a scan's rows are not independent measurements. Neighbouring
+  // rows share their map plane's (or skeleton patch's) fitting error, and every row shares the
+  // scan's de-skew error, so a few thousand rows carry far less information than a few thousand
+  // independent ones. Counted as independent at the range noise, they made the LiDAR so sure of
+  // roll and pitch that each scan overruled the gyro and the accelerometer, and whatever error
+  // the rows shared tilted the world away from gravity (issue 11, worst in fast hand-held PPF
+  // runs); counted at this level the IMU keeps the tilt, and position is still the LiDAR's.
+  double laser_point_std = 0.3;
   // Radians: the part of a row's noise that grows with the point's range. A far point is matched
   // to a plane fitted from neighbours as far apart as the beams are there, so its row's error
   // grows with range and, through its lever arm, turns the map about a horizontal axis (issue 11).
   // Row variance = laser_point_std^2 + (laser_angular_std * range)^2; 0 = range-independent.
-  double laser_angular_std = 0.005;
+  // Scaled with laser_point_std (same ratio), so near and far rows keep their relative weights.
+  double laser_angular_std = 0.05;
   // Metres; from the second iteration on, rows whose residual at the current estimate exceeds
   // this are dropped (0 = off). The providers' own gates must be wide enough for the prediction's
   // error (a fast turn, a bumpy start), but at those widths wrong associations (a road point

@@ -39,9 +39,9 @@ struct ImuInitOptions {
   // gravity tilts the world). Checked against `gravity` (or 9.80665 if that is 0).
   double max_gyro_bias = 0.05;      // rad/s (~3 deg/s: above MEMS turn-on biases)
   double max_gravity_error = 0.3;   // m/s^2 between the mean accelerometer norm and gravity
-  // Moving start (moving_start.hpp, run by the facade): when a window is refused for motion, the
-  // first scans are registered without the IMU for moving_start_window_s and gravity, velocity
-  // and gyro bias are estimated from them and the IMU, instead of waiting for rest.
+  // Moving start (moving_start.hpp, run by the facade): when a window is refused for motion,
+  // gravity, velocity and gyro bias are estimated from moving_start_window_s of scans registered
+  // without the IMU meanwhile and the IMU, instead of waiting for rest.
   bool moving_start = true;
   double moving_start_window_s = 1.5;
   double moving_start_max_gravity_error = 0.5;  // m/s^2: |g| of the free estimate vs gravity

@@ -122,6 +122,9 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("imu.init_max_gyro_std", &c->init.max_gyro_std);
   t.Add("imu.init_max_gyro_bias", &c->init.max_gyro_bias);
   t.Add("imu.init_max_gravity_error", &c->init.max_gravity_error);
+  t.Add("imu.moving_start", &c->init.moving_start);
+  t.Add("imu.moving_start_window", &c->init.moving_start_window_s);
+  t.Add("imu.moving_start_max_gravity_error", &c->init.moving_start_max_gravity_error);
   t.Add("imu.acc_scale", &c->init.acc_scale);
   t.Add("imu.gravity", &c->init.gravity);
   t.Add("imu.gyro_noise", &c->noise.gyro);
@@ -251,6 +254,10 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(lo->prior_pos_std > 0.0), "lidar_only.prior_pos_std", &lo->prior_pos_std, 0.1);
   fix(!(c->init.duration_s >= 0.0), "imu.init_duration", &c->init.duration_s, 1.0);
   fix(c->init.min_samples < 2, "imu.init_min_samples", &c->init.min_samples, 2);
+  fix(!(c->init.moving_start_window_s >= 0.3 && c->init.moving_start_window_s <= 10.0),
+      "imu.moving_start_window", &c->init.moving_start_window_s, 1.5);
+  fix(!(c->init.moving_start_max_gravity_error > 0.0), "imu.moving_start_max_gravity_error",
+      &c->init.moving_start_max_gravity_error, 0.5);
   fix(!(c->max_imu_gap_s > 0.0), "imu.max_gap", &c->max_imu_gap_s, 0.5);
   fix(!(c->max_imu_gap_bridge_s >= 0.0), "imu.max_gap_bridge", &c->max_imu_gap_bridge_s, 0.0);
   fix(!(c->gap_acc_std >= 0.0), "imu.gap_acc_std", &c->gap_acc_std, 1.0);

@@ -9,6 +9,7 @@ namespace ppf {
 void ImuInitializer::Reset() {
   window_.clear();
   done_ = false;
+  refused_for_motion_ = false;
   reason_.clear();
   restart_reason_.clear();
 }
@@ -21,6 +22,7 @@ ImuInitializer::State ImuInitializer::Add(const ImuSample& sample) {
   if (!window_.empty() && sample.stamp_s < window_.back().stamp_s) {
     window_.clear();
     reason_ = restart_reason_ = "IMU time went backwards during initialization";
+    refused_for_motion_ = false;
     window_.push_back(sample);
     return State::kRestarted;
   }
@@ -58,6 +60,7 @@ ImuInitializer::State ImuInitializer::Add(const ImuSample& sample) {
               " m/s^2, gyro std " + std::to_string(gyr_std) + " rad/s, |g| " +
               std::to_string(g_norm) + "): restarting";
     restart_reason_ = reason_;
+    refused_for_motion_ = true;
     window_.clear();
     return State::kRestarted;
   }
@@ -77,6 +80,7 @@ ImuInitializer::State ImuInitializer::Add(const ImuSample& sample) {
              std::to_string(options_.max_gravity_error);
     }
     reason_ = restart_reason_ = "steady motion during IMU initialization (" + why + "): restarting";
+    refused_for_motion_ = true;
     window_.clear();
     return State::kRestarted;
   }

@@ -9,6 +9,7 @@
 #include "ppf_core/deskew.hpp"
 #include "ppf_core/hypothesis_search.hpp"
 #include "ppf_core/motion_model.hpp"
+#include "ppf_core/moving_start.hpp"
 #include "ppf_core/preprocess.hpp"
 #include "ppf_core/skeleton_tracker.hpp"
 #include "ppf_core/so3.hpp"
@@ -82,6 +83,10 @@ struct LioPpf::Impl {
   void ResetFilter(const std::string& reason) {
     initialized = false;
     map_initialized = false;
+    moving_init = false;
+    moving_refused = false;
+    moving_poses.clear();
+    moving_scans = 0;
     init.Reset();
     motion.Reset();
     recent_fits.clear();
@@ -128,6 +133,11 @@ struct LioPpf::Impl {
       os << "IMU time went backwards by " << last_imu_stamp - s.stamp_s << " s";
       last_imu_stamp = -std::numeric_limits<double>::infinity();
       ResetFilter(os.str());
+    } else if (moving_init && s.stamp_s - last_imu_stamp > config.max_imu_gap_s) {
+      // The preintegration would span the gap: register the scans again after it.
+      std::ostringstream os;
+      os << "IMU gap of " << s.stamp_s - last_imu_stamp << " s";
+      RestartMovingInit(os.str());
     } else if (initialized && s.stamp_s - last_imu_stamp > config.max_imu_gap_s) {
       const double gap = s.stamp_s - last_imu_stamp;
       std::ostringstream os;
@@ -145,8 +155,19 @@ struct LioPpf::Impl {
     last_imu_stamp = s.stamp_s;
     imu.push_back(s);
     if (!initialized) {
+      // The scans are registered LiDAR-only while the IMU is judged, so that a moving start has
+      // its window of poses by the time the IMU is refused; a static start discards them.
+      if (config.init.moving_start) moving_init = true;
       const ImuInitializer::State st = init.Add(s);
-      if (st == ImuInitializer::State::kRestarted) Log(LogLevel::kWarn, init.reason());
+      if (st == ImuInitializer::State::kRestarted) {
+        Log(LogLevel::kWarn, init.reason());
+        if (moving_init && init.refused_for_motion() && !moving_refused) {
+          moving_refused = true;
+          Log(LogLevel::kInfo,
+              "no rest at start: moving-start initialization (gravity and velocity from the "
+              "LiDAR-only registration of the first scans and the IMU)");
+        }
+      }
       if (st == ImuInitializer::State::kDone) StartFilter();
     }
     // Bounded buffer even if no scan ever arrives.
@@ -155,11 +176,19 @@ struct LioPpf::Impl {
   }
 
   void StartFilter() {
+    if (moving_init) {
+      // Static after all: the LiDAR-only map of the first scans goes, the next scan builds the
+      // map as after any static start.
+      ClearMovingInit();
+      moving_init = false;
+      moving_refused = false;
+    }
     state = NavState();
     state.stamp_s = init.stamp_s();
     state.R_world_imu = init.R_world_imu();
     state.gyro_bias = init.gyro_bias();
     state.gravity_world = init.gravity_world();
+    acc_scale = init.acc_scale();
     state.P = StateCov::Zero();
     state.P.block<3, 3>(kRot, kRot).diagonal().setConstant(1e-4);
     state.P.block<3, 3>(kPos, kPos).diagonal().setConstant(1e-6);
@@ -222,7 +251,9 @@ struct LioPpf::Impl {
       if (q.rejected) {
         out.push_back(Rejected(q));
       } else {
+        const bool moving = moving_init;
         out.push_back(ProcessOne(q));
+        if (moving) MovingInitStep(&out.back());
       }
       scans.pop_front();
     }
@@ -280,12 +311,14 @@ struct LioPpf::Impl {
     r.input_points = scan.input_points;
     r.dropped_nan = scan.dropped_nan;
     r.map_size = map.size();
-    if (!initialized) {
+    if (!initialized && !moving_init) {
       r.status = Status::kInitializing;
       r.reason = init.reason().empty() ? "waiting for IMU data" : init.reason();
       return r;
     }
-    if (!lidar_only && scan.t_end <= state.stamp_s && !map_initialized) {
+    // The moving-start initialization registers its scans as LiDAR-only does.
+    const bool lidar = lidar_only || moving_init;
+    if (!lidar && scan.t_end <= state.stamp_s && !map_initialized) {
       r.status = Status::kInitializing;
       r.reason = "scan ends before IMU initialization finished";
       return r;
@@ -321,20 +354,21 @@ struct LioPpf::Impl {
 
     // Propagate to the scan end and de-skew the downsampled points.
     t0 = Clock::now();
-    if (lidar_only && !map_initialized) StartLidarOnly(scan.t_end);
+    if (lidar && !map_initialized) StartLidarOnly(scan.t_end);
     const double t_end = std::max(scan.t_end, state.stamp_s);
     PoseTrace trace;
-    if (lidar_only) {
+    if (lidar) {
       PredictConstantVelocity(t_end, &trace);
+      if (moving_init && motion.has_pose()) PredictGyro(t_end, &trace);
     } else {
       std::vector<ImuSample> samples(imu.begin(), imu.end());
-      PropagateImu(samples, t_end, init.acc_scale(), config.noise, &state, &trace);
+      PropagateImu(samples, t_end, acc_scale, config.noise, &state, &trace);
       for (const ImuSample& s : samples) {
         if (s.stamp_s > t_end && s.stamp_s != samples.front().stamp_s) break;
         gyro_at_scan_end = s.angular_velocity;
       }
     }
-    if (!lidar_only && t_end - last_imu_stamp > 0.02) {
+    if (!lidar && t_end - last_imu_stamp > 0.02) {
       std::ostringstream os;
       os << "IMU extrapolated by " << t_end - last_imu_stamp << " s (last sample held)";
       Append(&r.reason, os.str());
@@ -359,8 +393,9 @@ struct LioPpf::Impl {
     r.timings.deskew = MsSince(t0);
     last_scan_end = t_end;
     r.stamp_s = t_end;
-    // Keep one sample at or before the state time for the next interpolation.
-    while (imu.size() > 2 && imu[1].stamp_s <= state.stamp_s) imu.pop_front();
+    // Keep one sample at or before the state time for the next interpolation (the moving-start
+    // initialization keeps all: it preintegrates from its first scan).
+    while (!moving_init && imu.size() > 2 && imu[1].stamp_s <= state.stamp_s) imu.pop_front();
 
     frame.stamp_s = t_end;
     frame.labels.assign(frame.points_lidar.size(), PointLabel::kScattered);
@@ -374,8 +409,8 @@ struct LioPpf::Impl {
       InsertScattered(frame, frame.T_world_lidar_predicted, &r);
       map_initialized = !frame.points_lidar.empty();
       map_init_stamp_s = t_end;
+      if (lidar && map_initialized) motion.Update(state.T_world_imu(), t_end);
       if (lidar_only && map_initialized) {
-        motion.Update(state.T_world_imu(), t_end);
         Append(&r.reason, "LiDAR-only (no IMU): world frame = this scan's LiDAR frame");
       }
       r.timings.map_insert = MsSince(t0);
@@ -390,7 +425,7 @@ struct LioPpf::Impl {
     }
 
     CoarseAlignment coarse;
-    if (lidar_only) {
+    if (lidar) {
       t0 = Clock::now();
       coarse = AlignGuesses(t_end);
       r.timings.guesses = MsSince(t0);
@@ -452,7 +487,7 @@ struct LioPpf::Impl {
       r.status = Status::kDegenerate;
       std::ostringstream os;
       os << "too few residuals (" << rep.num_rows << " < " << config.iekf.min_rows
-         << "): " << (lidar_only ? "motion-model prediction only" : "IMU prediction only");
+         << "): " << (lidar ? "motion-model prediction only" : "IMU prediction only");
       Append(&r.reason, os.str());
     } else if (rep.degenerate) {
       r.status = Status::kDegenerate;
@@ -460,7 +495,7 @@ struct LioPpf::Impl {
     } else {
       r.status = Status::kOk;
     }
-    if (lidar_only) {
+    if (lidar) {
       r.fit = coarse.fit;
       r.motion_guess = coarse.name;
       r.guesses_tried = coarse.tried;
@@ -556,12 +591,49 @@ struct LioPpf::Impl {
 
   // The guesses of hypothesis_search.hpp around the model's prediction (state at t_end); the
   // best aligned one becomes the prediction of the update and of the skeleton tracker.
+  // Moving start: the gyro measures the turn however fast it is (a hand-held sensor turns at
+  // 150 deg/s); only the translation comes from the constant-velocity model. Gravity is not
+  // needed for this, nor the bias (0.1 s of a few mrad/s).
+  void PredictGyro(double t_end, PoseTrace* trace) {
+    const double t0 = motion.stamp();
+    const std::vector<ImuSample> samples(imu.begin(), imu.end());
+    PoseTrace g;
+    ImuKnot k;
+    k.t = t0;
+    k.R = motion.pose().linear();
+    k.p = motion.pose().translation();
+    k.v = motion.velocity_world();
+    std::vector<double> times{t0};
+    for (const ImuSample& s : samples) {
+      if (s.stamp_s > t0 && s.stamp_s < t_end) times.push_back(s.stamp_s);
+    }
+    times.push_back(t_end);
+    for (size_t i = 0; i + 1 < times.size(); ++i) {
+      const double h = times[i + 1] - times[i];
+      k.omega = 0.5 * (InterpolateImu(samples, times[i]).angular_velocity +
+                       InterpolateImu(samples, times[i + 1]).angular_velocity);
+      g.knots.push_back(k);
+      k.t = times[i + 1];
+      k.R = NormalizeRotation(k.R * SO3Exp(k.omega * h));
+      k.p += k.v * h;
+    }
+    k.omega = InterpolateImu(samples, t_end).angular_velocity;
+    g.knots.push_back(k);  // holds the last rate for points after t_end
+    *trace = g;
+    state.R_world_imu = k.R;
+    state.p_world_imu = k.p;
+    gyro_at_scan_end = k.omega;
+    imu_prediction = true;
+  }
+
   CoarseAlignment AlignGuesses(double t_end) {
     const Eigen::Isometry3d& T_il = config.T_imu_lidar;
     const double dt = t_end - motion.stamp();
     const Eigen::Isometry3d T_last = motion.pose();
     const Eigen::Isometry3d T_cv = motion.Predict(t_end);
     std::vector<MotionHypothesis> h;
+    if (imu_prediction) h.push_back({"gyro", state.T_world_imu() * T_il});
+    imu_prediction = false;
     h.push_back({"constant velocity", T_cv * T_il});
     h.push_back({"no motion", T_last * T_il});
     for (double scale : {0.5, 1.5}) {
@@ -603,6 +675,145 @@ struct LioPpf::Impl {
     frame.T_world_lidar_predicted = c.T_world_lidar;
     SetLidarOnlyPrior();
     return c;
+  }
+
+  // Moving start: the scan just registered LiDAR-only (ProcessOne) joins the window. Once the
+  // IMU has been refused for motion and the window spans moving_start_window_s, gravity,
+  // velocity and gyro bias are estimated and the filter continues as LIO from this scan's pose,
+  // in the map these scans built. Until then the results are kInitializing: their poses are in a
+  // frame whose "up" is not known yet.
+  void MovingInitStep(ScanResult* r) {
+    if (!moving_init) return;  // the IMU initialized statically meanwhile
+    if (r->status == Status::kReset || r->status == Status::kRejected) return;
+    if (r->status == Status::kInitializing && !map_initialized) return;  // empty first scan
+    const bool poor_fit = r->fit < config.lidar_only.min_fit;
+    const bool skipped =
+        r->knn_residuals + r->skeleton_residuals < static_cast<size_t>(config.iekf.min_rows);
+    if (map_initialized && moving_scans > 0 && (poor_fit || skipped)) {
+      // A scan the LiDAR-only registration could not place would bend every later equation.
+      // (Directions the update flags as weak keep the gyro's and the motion model's values.)
+      RestartMovingInit("scan at t=" + std::to_string(r->stamp_s) + " not registered (" +
+                        r->reason + ")");
+      SetMovingInitResult(r);
+      return;
+    }
+    // Warm-up: the first scan built the map without knowing the motion (a sweep at 8 m/s is
+    // smeared by 0.8 m) and the next ones were predicted and de-skewed from too little of it;
+    // their poses jump against the later ones, which would read as velocity and tilt.
+    if (++moving_scans <= kMovingWarmupScans) {
+      SetMovingInitResult(r);
+      return;
+    }
+    MovingStartPose pose;
+    pose.t = state.stamp_s;
+    pose.R = state.R_world_imu;
+    pose.p = state.p_world_imu;
+    moving_poses.push_back(pose);
+    const double window = config.init.moving_start_window_s;
+    while (moving_poses.size() > 2 && pose.t - moving_poses[1].t + 1e-6 >= window) {
+      moving_poses.erase(moving_poses.begin());
+    }
+    if (!moving_refused || pose.t - moving_poses.front().t + 1e-6 < window) {
+      SetMovingInitResult(r);
+      return;
+    }
+    MovingStartOptions opt;
+    opt.gravity = config.init.gravity > 0.0 ? config.init.gravity : 9.80665;
+    opt.acc_scale = config.init.acc_scale;
+    opt.max_gravity_error = config.init.moving_start_max_gravity_error;
+    opt.max_gyro_bias = config.init.max_gyro_bias;
+    const std::vector<ImuSample> samples(imu.begin(), imu.end());
+    const MovingStartEstimate e = EstimateMovingStart(samples, moving_poses, opt);
+    if (!e.ok) {
+      RestartMovingInit(e.reason);
+      SetMovingInitResult(r);
+      return;
+    }
+    StartFilterMoving(e);
+    // This scan's pose is the filter's first: report it in the now gravity-aligned world.
+    r->status = Status::kOk;
+    r->pose_valid = true;
+    std::ostringstream os;
+    os.precision(4);
+    os << "moving-start initialization: |g| free " << e.gravity_norm_free << " m/s^2 (+-"
+       << e.gravity_sigma << "), speed " << e.velocity_map.norm() << " m/s";
+    r->reason = os.str();
+    FillState(r);
+  }
+
+  void SetMovingInitResult(ScanResult* r) const {
+    r->status = Status::kInitializing;
+    r->pose_valid = false;
+    if (!moving_refused) {
+      // The IMU may still show rest: say what the static initialization says.
+      r->reason = init.reason().empty() ? "waiting for IMU data" : init.reason();
+      return;
+    }
+    std::ostringstream os;
+    os.precision(3);
+    const double span = moving_poses.empty() ? 0.0 : moving_poses.back().t - moving_poses.front().t;
+    os << "moving-start initialization: LiDAR-only registration, " << span << " of "
+       << config.init.moving_start_window_s << " s (" << init.reason() << ")";
+    r->reason = os.str();
+  }
+
+  // Starts the window again from the next scan with a new map (its frame is that scan's).
+  void RestartMovingInit(const std::string& why) {
+    Log(LogLevel::kWarn, "moving-start initialization restarts: " + why);
+    ClearMovingInit();
+  }
+
+  void ClearMovingInit() {
+    moving_poses.clear();
+    moving_scans = 0;
+    map_initialized = false;
+    map.clear();
+    motion.Reset();
+    recent_fits.clear();
+    if (splitter) splitter->Reset();
+    for (auto& p : extra) p->Reset();
+    knn->Reset();
+    scans_since_prune = 0;
+    last_scan_end = -std::numeric_limits<double>::infinity();
+  }
+
+  void StartFilterMoving(const MovingStartEstimate& e) {
+    // R and p stay the LiDAR-only registration's: the map is in that frame.
+    state.v_world = e.velocity_map;
+    state.gravity_world = e.gravity_map;
+    state.gyro_bias = e.gyro_bias;
+    state.acc_bias.setZero();
+    acc_scale = e.acc_scale;
+    state.P = StateCov::Zero();
+    state.P.block<3, 3>(kRot, kRot).diagonal().setConstant(1e-4);
+    state.P.block<3, 3>(kPos, kPos).diagonal().setConstant(1e-4);
+    // The velocity comes from positions about 0.1 s apart registered to a few centimetres.
+    state.P.block<3, 3>(kVel, kVel).diagonal().setConstant(1e-3);
+    // The bias comes from LiDAR-only rotations over the window; on hand-held motion they are
+    // off by up to ~1 deg, i.e. 0.01 rad/s over 1.5 s.
+    const double bg_sigma = 0.01;
+    state.P.block<3, 3>(kBg, kBg).diagonal().setConstant(bg_sigma * bg_sigma);
+    state.P.block<3, 3>(kBa, kBa).diagonal().setConstant(1e-3);
+    // Tilt: the accelerometer bias (as after a static start) and the estimate's own spread.
+    const double g = e.gravity_map.norm();
+    const double tilt_var = state.P(kBa, kBa) / (g * g) + std::pow(e.gravity_sigma / g, 2);
+    state.P.block<2, 2>(kGrav, kGrav).diagonal().setConstant(tilt_var);
+    while (imu.size() > 2 && imu[1].stamp_s <= state.stamp_s) imu.pop_front();
+    moving_init = false;
+    moving_refused = false;
+    initialized = true;
+    moving_poses.clear();
+    moving_scans = 0;
+    const Eigen::Vector3d up = -e.gravity_map.normalized();
+    const Eigen::Vector3d up_first_imu = (state.R_world_imu.transpose() * up);
+    std::ostringstream os;
+    os.precision(5);
+    os << "IMU initialized from a moving start at t=" << state.stamp_s << ": gravity in the map ["
+       << e.gravity_map.transpose() << "] m/s^2 (free |g| " << e.gravity_norm_free << " +- "
+       << e.gravity_sigma << ", position rms " << e.rms_residual << " m), up in the IMU frame ["
+       << up_first_imu.transpose() << "], speed " << e.velocity_map.norm() << " m/s, gyro bias ["
+       << e.gyro_bias.transpose() << "], acc_scale=" << acc_scale;
+    Log(LogLevel::kInfo, os.str());
   }
 
   // The IMU did not measure the motion during a gap: integration across it assumed the samples on
@@ -649,6 +860,14 @@ struct LioPpf::Impl {
   bool map_initialized = false;
   bool lidar_only = false;         // decided: no IMU (DecideImuMode)
   bool lio_decided = false;        // decided: the IMU predicts
+  // Moving start (moving_start.hpp): scans are registered LiDAR-only until the window is full.
+  bool moving_init = false;
+  bool moving_refused = false;  // the IMU was refused for motion: the window decides
+  bool imu_prediction = false;  // moving start: this scan's prediction is PredictGyro's
+  std::vector<MovingStartPose> moving_poses;  // IMU poses of the window's registered scans
+  int moving_scans = 0;  // registered since the window (re)started, warm-up included
+  static constexpr int kMovingWarmupScans = 5;
+  double acc_scale = 1.0;          // of the initialization in use
   ConstantVelocityModel motion;    // LiDAR-only prediction (IMU frame poses)
   std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
   size_t ignored_imu = 0;

@@ -260,26 +260,42 @@ TEST(EndToEnd, TwoSecondGapWhileMovingIsBridged) {
   CheckAccuracy(run, "2 s gap while moving, bridged", "gap2s");
 }
 
-// Beyond max_imu_gap_bridge the filter resets as it always did; a moving robot then gets no pose
-// until it stands still for the static initialization. Kept for gaps extrapolation cannot span.
+// Beyond max_imu_gap_bridge the filter resets as it always did. Without the moving-start
+// initialization a moving robot then gets no pose until it stands still for the static one; with
+// it (the default) odometry resumes within 3 s of the gap's end.
 TEST(EndToEnd, GapLongerThanTheBridgeResets) {
-  RunOptions o;
-  o.gap_begin = 6.0;
-  o.gap_length = 2.0;
-  Config config;
-  config.max_imu_gap_bridge_s = 1.5;
-  const RunOutput run = Simulate(o, config);
-  size_t resets = 0, after_gap = 0;
-  for (const ScanResult& r : run.results) {
-    if (r.status == Status::kReset) {
-      ++resets;
-      EXPECT_NE(r.reason.find("max_imu_gap_bridge"), std::string::npos) << r.reason;
+  for (const bool moving_start : {false, true}) {
+    SCOPED_TRACE(moving_start ? "moving_start" : "static only");
+    RunOptions o;
+    o.gap_begin = 6.0;
+    o.gap_length = 2.0;
+    Config config;
+    config.max_imu_gap_bridge_s = 1.5;
+    config.init.moving_start = moving_start;
+    const RunOutput run = Simulate(o, config);
+    size_t resets = 0, after_gap = 0;
+    double first_after = -1.0;
+    for (const ScanResult& r : run.results) {
+      if (r.status == Status::kReset) {
+        ++resets;
+        EXPECT_NE(r.reason.find("max_imu_gap_bridge"), std::string::npos) << r.reason;
+      }
+      EXPECT_EQ(r.imu_gap_s, 0.0);
+      if (r.pose_valid && r.stamp_s > o.gap_begin + o.gap_length) {
+        ++after_gap;
+        if (first_after < 0.0) first_after = r.stamp_s;
+      }
     }
-    EXPECT_EQ(r.imu_gap_s, 0.0);
-    if (r.pose_valid && r.stamp_s > o.gap_begin + o.gap_length) ++after_gap;
+    EXPECT_EQ(resets, 1u);
+    if (!moving_start) {
+      EXPECT_EQ(after_gap, 0u);
+    } else {
+      ASSERT_GT(after_gap, 0u);
+      EXPECT_LE(first_after - (o.gap_begin + o.gap_length), 3.0);
+      // From the first pose on, every scan has one.
+      EXPECT_GE(after_gap + 1, static_cast<size_t>((o.duration - first_after) * 10.0));
+    }
   }
-  EXPECT_EQ(resets, 1u);
-  EXPECT_EQ(after_gap, 0u);
 }
 
 }  // namespace

@@ -23,7 +23,8 @@ Time conventions
   (--stamp end / --time-field change this on purpose, for testing the core's detection.)
   The bag (receive) time of a cloud is the scan END (when a driver publishes it); IMU bag time
   = its stamp. The sensor pose is evaluated at each firing time (motion distortion is real).
-  Sim time 0 = --start-time; the platform is static for --static seconds at the start.
+  Sim time 0 = --start-time; the platform is static for --static seconds at the start
+  (or already moving with --moving-start).
 Frames
   groundtruth.tum: T_world_imu, the IMU/body frame in the gravity-aligned world frame (z up),
   one line per IMU sample ("t x y z qx qy qz qw"). calibration.yaml: T_imu_lidar
@@ -40,6 +41,9 @@ Options
   --motion M            car | handheld (default: handheld indoors, car elsewhere)
   --speed V             m/s (default: car 10 urban, 8 ramps, 5 park; handheld 1.3)
   --static S            seconds at rest at the start (>= 2 for LIO initialization) [2.5]
+  --moving-start        no rest: the first scan and IMU sample are already at cruise speed
+                        and turning as the drive does (sim time 0 is a point past the
+                        acceleration of the planned motion; excludes --static)
   --max-rate DEG        hand-held shake peak angular rate, deg/s (turns add)       [150]
   --range-noise M       LiDAR range noise, 1 sigma, metres                         [0.02]
   --dropout P           probability that a return is lost at random                [0.005]
@@ -80,7 +84,7 @@ int main(int argc, char** argv) {
          "accel-noise", "gyro-bias-rw", "accel-bias-rw", "gyro-bias-init", "accel-bias-init",
          "gravity", "extrinsic", "start-time", "lidar-frame", "imu-frame", "points-topic",
          "imu-topic", "threads", "time-field", "stamp"},
-        {"help", "no-imu-noise"});
+        {"help", "no-imu-noise", "moving-start"});
     if (args.Has("help")) {
       std::fputs(kHelp, stdout);
       return 0;
@@ -111,6 +115,9 @@ int main(int argc, char** argv) {
       throw std::invalid_argument("--speed must be in [0, 40] m/s");
     cfg.world.static_time = args.Num("static", 2.5);
     if (cfg.world.static_time < 0.0) throw std::invalid_argument("--static must be >= 0");
+    cfg.world.moving_start = args.Has("moving-start");
+    if (cfg.world.moving_start && args.Has("static"))
+      throw std::invalid_argument("--moving-start and --static exclude each other");
     cfg.world.max_rate_deg = args.Num("max-rate", 150.0);
     cfg.scan.range_noise = args.Num("range-noise", 0.02);
     cfg.scan.dropout = args.Num("dropout", 0.005);

@@ -180,7 +180,10 @@ SimSummary RunSimulation(const SimConfig& cfg, std::ostream& log) {
         << "  motion: " << (world.motion == MotionKind::kCar ? "car" : "handheld") << "\n"
         << "  speed: " << world.speed << "\n"
         << "  duration: " << cfg.world.duration << "\n"
-        << "  static_time: " << cfg.world.static_time << "\n"
+        << "  static_time: " << (cfg.world.moving_start ? 0.0 : cfg.world.static_time) << "\n"
+        << "  moving_start: " << (cfg.world.moving_start ? "true" : "false") << "\n"
+        << "  moving_start_offset: " << world.start_offset
+        << "  # s of the planned motion before time 0\n"
         << "  seed: " << cfg.seed << "\n"
         << "  start_time_ns: " << cfg.start_ns << "\n";
   }

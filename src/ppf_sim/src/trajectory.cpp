@@ -21,6 +21,20 @@ void Trajectory::SetShakes(std::vector<Shake> shakes, double start, double ramp)
   shake_ramp_ = std::max(ramp, 1e-3);
 }
 
+void Trajectory::StartAt(double t0) {
+  const long k = std::lround(t0 / dt_);
+  if (k <= 0) return;
+  if (static_cast<size_t>(k) + 4 > pos_.size()) {
+    throw std::invalid_argument("Trajectory::StartAt: start beyond the end of the curve");
+  }
+  pos_.erase(pos_.begin(), pos_.begin() + k);
+  euler_.erase(euler_.begin(), euler_.begin() + k);
+  end_time_ = static_cast<double>(pos_.size() - 3) * dt_;
+  const double shift = static_cast<double>(k) * dt_;
+  for (Shake& sh : shakes_) sh.phase += 2.0 * M_PI * sh.freq_hz * shift;
+  shake_start_ -= shift;
+}
+
 void Trajectory::EvalChannels(double t, int order, double val[6], double d1[6],
                               double d2[6]) const {
   const int n_seg = static_cast<int>(pos_.size()) - 3;

@@ -40,21 +40,30 @@ World BuildWorld(const WorldOptions& opt) {
   }
   world.speed = speed;
   Rng rng(opt.seed, 0x5CE7Eu);
-  const int n_samples = static_cast<int>(std::ceil((opt.duration + 3.0) / kKnotDt)) + 4;
+  const double static_time = opt.moving_start ? 0.0 : opt.static_time;
   // The spline reaches 2 knots back and the suspension filter 3 more: start moving late enough
   // that the curve is exactly constant until static_time + 0.1 s.
-  const double move_time = opt.static_time + 6 * kKnotDt;
+  const double move_time = static_time + 6 * kKnotDt;
+  const double path_accel =
+      opt.scene == "indoor" ? (handheld ? 0.6 : 0.4) : (handheld ? 0.7 : KinematicLimits().accel);
+  // Moving start: skip the rest, the acceleration to cruise speed and one more second (the
+  // shakes are fully faded in by then), in whole knots.
+  const double start_offset =
+      opt.moving_start ? std::ceil((move_time + speed / path_accel + 1.0) / kKnotDt) * kKnotDt
+                       : 0.0;
+  const int n_samples =
+      static_cast<int>(std::ceil((opt.duration + start_offset + 3.0) / kKnotDt)) + 4;
 
   std::vector<PathSample> path;
   if (opt.scene == "indoor") {
-    path = FollowPolyline(IndoorPolyline(speed * (opt.duration + 5.0) + 20.0), 0.8, speed,
-                          handheld ? 0.6 : 0.4, kKnotDt, n_samples, move_time);
+    path = FollowPolyline(IndoorPolyline(speed * (opt.duration + start_offset + 5.0) + 20.0), 0.8,
+                          speed, path_accel, kKnotDt, n_samples, move_time);
     SmoothYaw(path, kKnotDt, handheld ? 0.3 : 1.0);
   } else {
     KinematicLimits lim;
     lim.cruise_speed = speed;
     if (handheld) {
-      lim.accel = 0.7;
+      lim.accel = path_accel;
       lim.lateral_accel = 1.0;
       lim.max_curvature = 0.5;
       lim.curvature_rate = 0.5;
@@ -135,7 +144,11 @@ World BuildWorld(const WorldOptions& opt) {
   world.scene.Build(4.0);
   world.trajectory = Trajectory(kKnotDt, std::move(pos), std::move(euler));
   world.trajectory.SetShakes(handheld ? HandheldShakes(rng, opt.max_rate_deg) : CarShakes(rng),
-                             opt.static_time + 0.1, 1.5);
+                             static_time + 0.1, 1.5);
+  if (opt.moving_start) {
+    world.trajectory.StartAt(start_offset);
+    world.start_offset = start_offset;
+  }
   return world;
 }
 

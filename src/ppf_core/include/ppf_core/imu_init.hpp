@@ -39,6 +39,12 @@ struct ImuInitOptions {
   // gravity tilts the world). Checked against `gravity` (or 9.80665 if that is 0).
   double max_gyro_bias = 0.05;      // rad/s (~3 deg/s: above MEMS turn-on biases)
   double max_gravity_error = 0.3;   // m/s^2 between the mean accelerometer norm and gravity
+  // Moving start (moving_start.hpp, run by the facade): when a window is refused for motion,
+  // gravity, velocity and gyro bias are estimated from moving_start_window_s of scans registered
+  // without the IMU meanwhile and the IMU, instead of waiting for rest.
+  bool moving_start = true;
+  double moving_start_window_s = 1.5;
+  double moving_start_max_gravity_error = 0.5;  // m/s^2: |g| of the free estimate vs gravity
 };
 
 class ImuInitializer {
@@ -51,6 +57,9 @@ class ImuInitializer {
   State Add(const ImuSample& sample);
 
   bool done() const { return done_; }
+  // The last window was refused because the IMU moved (spread or steady motion), not for a
+  // broken stream.
+  bool refused_for_motion() const { return refused_for_motion_; }
   const std::string& reason() const { return reason_; }
   void Reset();
 
@@ -65,6 +74,7 @@ class ImuInitializer {
   ImuInitOptions options_;
   std::vector<ImuSample> window_;
   bool done_ = false;
+  bool refused_for_motion_ = false;
   std::string reason_;
   std::string restart_reason_;
   Eigen::Matrix3d R_world_imu_ = Eigen::Matrix3d::Identity();

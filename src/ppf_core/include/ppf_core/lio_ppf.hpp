@@ -32,6 +32,18 @@
 // Initialization (imu_init.hpp): needs Config::init.duration_s (1 s) of static IMU data; scans
 // before that return Status::kInitializing. Motion during that window restarts the collection.
 // The first scan after initialization builds the map (Status::kOk, reason "map initialized").
+// Moving start (Config::init.moving_start, on by default; moving_start.hpp): while the IMU is
+// judged, the scans are registered LiDAR-only (as below, their map in the first one's LiDAR
+// frame; the rotation predicted and de-skewed from the gyro), still Status::kInitializing. If the
+// IMU shows rest, that map is dropped and the static path above runs. If its window is refused
+// for motion, the poses of init.moving_start_window_s of scans (after 5 warm-up scans) and the
+// preintegrated IMU give gravity, velocity and gyro bias, and the filter continues as LIO from
+// the last of them, which is the first kOk result (reason "moving-start initialization: ...";
+// one INFO log line with the gravity estimate). The map frame is then the first registered
+// scan's LiDAR frame (T_world_map levels it). An estimate that fails its checks, or a scan that
+// does not register, starts the window again. Known gap: a start at constant velocity in a
+// straight line without vibration looks like rest to an IMU and takes the static path (with
+// zero velocity).
 //
 // LiDAR-only (Config::imu_mode none, or kAuto when scans spanning imu_auto_wait_s came without an
 // IMU sample; ppf_offline decides at once from a bag without an IMU topic): no static

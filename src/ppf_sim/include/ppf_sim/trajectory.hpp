@@ -41,6 +41,11 @@ class Trajectory {
   // Shakes fade in over [start, start + ramp] so the static start stays exactly static.
   void SetShakes(std::vector<Shake> shakes, double start, double ramp);
 
+  // Moves time zero to t0 of the current curve (a multiple of knot_dt, rounded to one), so a
+  // sequence can begin in the middle of the motion. Dropping whole control points keeps the
+  // curve, its derivatives and the shakes exactly those of the original at t + t0.
+  void StartAt(double t0);
+
   TrajectoryState Evaluate(double t) const;
   // T_world_imu at time t (cheaper than Evaluate: no derivatives).
   Eigen::Isometry3d Pose(double t) const;

@@ -19,6 +19,9 @@ struct WorldOptions {
   double speed = 0.0;             // m/s; 0 = default (car 10, park car 5, walking 1.3)
   double duration = 30.0;         // s the trajectory must cover
   double static_time = 2.5;       // s at rest at the start
+  // The sequence begins in motion: the trajectory is planned with a short rest, then time zero
+  // is moved to after the acceleration to cruise speed plus a second (static_time is ignored).
+  bool moving_start = false;
   double max_rate_deg = 150.0;    // hand-held shake: peak rate of the shake, deg/s (turns add)
   // m; open-ground car drives (urban, park, ramps) turn back towards the origin beyond this
   // distance. 0 = the scene's own (150 m, park 100 m). Larger values let long drives (endurance
@@ -32,6 +35,7 @@ struct World {
   Trajectory trajectory;
   MotionKind motion = MotionKind::kCar;
   double speed = 0.0;
+  double start_offset = 0.0;  // moving_start: time of the planned motion that became time zero
 };
 
 std::vector<std::string> SceneNames();

@@ -1,6 +1,7 @@
 #include "node_inputs.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <mutex>
 #include <optional>
 #include <vector>
@@ -53,6 +54,7 @@ class NodeInputs::CloudListener : public fdds::DataReaderListener {
   void on_data_available(fdds::DataReader* reader) override { inputs_->OnClouds(reader); }
   void on_subscription_matched(fdds::DataReader*,
                                const fdds::SubscriptionMatchedStatus& s) override {
+    inputs_->points_stall_.OnMatched(s.current_count, Clock::now());
     Log(Level::kInfo, "points: " + std::to_string(s.current_count) + " publisher(s) matched");
   }
   void on_requested_incompatible_qos(fdds::DataReader*,
@@ -74,6 +76,7 @@ class NodeInputs::ImuListener : public fdds::DataReaderListener {
   }
   void on_subscription_matched(fdds::DataReader*,
                                const fdds::SubscriptionMatchedStatus& s) override {
+    inputs_->imu_stall_.OnMatched(s.current_count, Clock::now());
     Log(Level::kInfo, "imu: " + std::to_string(s.current_count) + " publisher(s) matched");
   }
   void on_requested_incompatible_qos(fdds::DataReader*,
@@ -99,7 +102,9 @@ NodeInputs::NodeInputs(const NodeConfig& c, NodeStats* stats)
       empty_log_(c.malformed_log_interval_s),
       large_log_(c.malformed_log_interval_s),
       stamp_log_(c.malformed_log_interval_s),
-      jump_log_(c.malformed_log_interval_s) {}
+      jump_log_(c.malformed_log_interval_s),
+      points_stall_(c.stall_warn_s),
+      imu_stall_(c.stall_warn_s) {}
 
 NodeInputs::~NodeInputs() = default;
 
@@ -150,6 +155,62 @@ void NodeInputs::FlushLogs() {
   }
 }
 
+namespace {
+
+std::string Seconds(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.1f", s);
+  return buf;
+}
+
+// One stream's stall events as log lines; counts the counted episodes into `counter`.
+void ReportStall(const std::string& stream, StallWatch* w, NodeStats* stats,
+                 uint64_t NodeSummary::*counter) {
+  const StallWatch::Poll p = w->Check(Clock::now());
+  const std::string matched = std::to_string(w->matched()) + " publisher(s) matched";
+  switch (p.event) {
+    case StallWatch::Event::kNone:
+      break;
+    case StallWatch::Event::kStalled:
+      if (p.counted) {
+        const uint64_t n = stats->Add(counter);
+        Log(Level::kWarn, stream + ": stalled: nothing received for " + Seconds(p.silent_s) +
+                              " s although " + matched +
+                              " (the publisher stopped sending, or the transport stopped "
+                              "delivering; stall " +
+                              std::to_string(n) + ")");
+      } else {
+        Log(Level::kWarn, stream + ": " + matched + " " + Seconds(p.silent_s) +
+                              " s ago, nothing received yet (a replay not started? a driver "
+                              "not sending?)");
+      }
+      break;
+    case StallWatch::Event::kStillStalled:
+      Log(Level::kWarn, stream + ": still stalled: nothing received for " + Seconds(p.silent_s) +
+                            " s, " + matched);
+      break;
+    case StallWatch::Event::kResumed:
+      Log(Level::kInfo, stream + ": " + (p.counted ? "data resumed" : "first data") +
+                            " after a silence of at least " + Seconds(p.silent_s) + " s");
+      break;
+    case StallWatch::Event::kEnded:
+      Log(Level::kInfo, stream + ": no publisher left; the stall ended after at least " +
+                            Seconds(p.silent_s) + " s without data");
+      break;
+  }
+}
+
+}  // namespace
+
+std::string NodeInputs::CheckStalls() {
+  ReportStall("points", &points_stall_, stats_, &NodeSummary::points_stalls);
+  ReportStall("imu", &imu_stall_, stats_, &NodeSummary::imu_stalls);
+  std::string stalled;
+  if (points_stall_.stalled()) stalled = "points";
+  if (imu_stall_.stalled()) stalled += stalled.empty() ? "imu" : "+imu";
+  return stalled;
+}
+
 void NodeInputs::OnClouds(fdds::DataReader* reader) {
   while (true) {
     const Clock::time_point received = Clock::now();
@@ -163,7 +224,13 @@ void NodeInputs::OnClouds(fdds::DataReader* reader) {
       pool_->Return(std::move(buffer));
       break;
     }
-    if (!info.valid_data || !accepting_.load()) {
+    if (!info.valid_data) {
+      pool_->Return(std::move(buffer));
+      continue;
+    }
+    // Any sample, malformed ones too: the stream is alive.
+    points_stall_.OnSample(received);
+    if (!accepting_.load()) {
       pool_->Return(std::move(buffer));
       continue;
     }
@@ -257,6 +324,7 @@ void NodeInputs::OnImu(fdds::DataReader* reader) {
     fdds::SampleInfo info;
     if (reader->take_next_sample(&sample, &info) != ReturnCode_t::RETCODE_OK) break;
     if (!info.valid_data) continue;
+    imu_stall_.OnSample(Clock::now());
     if (!accepting_.load()) continue;
     if (const uint64_t missing =
             imu_gaps_.Count(info.sample_identity.writer_guid(),

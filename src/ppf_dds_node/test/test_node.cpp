@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -29,8 +30,10 @@
 using namespace std::chrono_literals;
 using ppf::dds::ChildProcess;
 using ppf::test::Collector;
+using ppf::test::CountLinesWith;
 using ppf::test::kProfile;
 using ppf::test::kProfiles;
+using ppf::test::ReadTextFile;
 using ppf::test::SummaryField;
 using ppf::test::TempDir;
 using ppf::test::TestParticipant;
@@ -112,19 +115,22 @@ constexpr int64_t kT0 = 1700000000LL * 1000000000LL;
 // Publishes a static drive in real time, stamps from kT0: resting IMU every 5 ms and, after 1.5 s
 // of rest (initialization), `scans` scans at 10 Hz: `cloud` again each time, stamped with that
 // scan's start. *seq numbers the IMU samples; *imu_t ends as the next IMU sample's stamp.
+// With `first` > 0 the stamps go on from *imu_t with scan `first` (the call before ended with
+// scan first - 1), as a paused replay resumes.
 void DriveStaticRoom(fdds::DataWriter* imu_w, fdds::DataWriter* cloud_w,
-                     sensor_msgs::msg::PointCloud2& cloud, int scans, uint64_t* seq,
-                     int64_t* imu_t) {
+                     sensor_msgs::msg::PointCloud2& cloud, int scans, uint64_t* seq, int64_t* imu_t,
+                     int first = 0) {
   const auto wall0 = std::chrono::steady_clock::now();
-  *imu_t = kT0;
-  for (int s = 0; s <= scans; ++s) {
+  if (first == 0) *imu_t = kT0;
+  const int64_t t_begin = *imu_t;
+  for (int s = first; s <= scans; ++s) {
     const int64_t scan_end = kT0 + 1500000000LL + s * 100000000LL;
     while (*imu_t <= scan_end) {
       sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(*imu_t, (*seq)++);
       ASSERT_TRUE(imu_w->write(&imu));
       *imu_t += 5000000;
     }
-    std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(scan_end - kT0));
+    std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(scan_end - t_begin));
     if (s == 0) continue;
     cloud.header().stamp(ppf::msgs::TimeFromNanoseconds(scan_end - 100000000LL));
     ASSERT_TRUE(cloud_w->write(&cloud));
@@ -197,7 +203,8 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
       },
       20s));
   // Two participants write /points (driver and rogue): both must be known to the node.
-  ASSERT_TRUE(WaitForNodeInputsMatched(dir + "/node.log", 2, 1, 20s)) << "see " << dir << "/node.log";
+  ASSERT_TRUE(WaitForNodeInputsMatched(dir + "/node.log", 2, 1, 20s))
+      << "see " << dir << "/node.log";
 
   // VLP-16-sized static room: 1.5 s of resting IMU for initialization, then 20 scans at 10 Hz.
   sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
@@ -318,7 +325,8 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
   ASSERT_TRUE(cloud_w && imu_w);
   ASSERT_TRUE(
       WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 && odom.matched > 0; }, 20s));
-  ASSERT_TRUE(WaitForNodeInputsMatched(dir + "/node.log", 1, 1, 20s)) << "see " << dir << "/node.log";
+  ASSERT_TRUE(WaitForNodeInputsMatched(dir + "/node.log", 1, 1, 20s))
+      << "see " << dir << "/node.log";
   sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
   const int kScans = 10;
   size_t first_pass = 0;
@@ -354,6 +362,89 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
   EXPECT_EQ(SummaryField(line, "scans_processed"), 2.0 * kScans);
   EXPECT_EQ(SummaryField(line, "imu_received"), static_cast<double>(seq));
   EXPECT_EQ(SummaryField(line, "imu_out_of_order"), 0.0);
+  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
+}
+
+// The data stops while the publishers stay matched (a stalled driver, a transport that stopped
+// delivering, a paused replay): the node says so in its status line and a WARN naming each
+// stream, counts one stall per stream, and reports the data coming back. Before, it printed
+// status=ok for as long as nothing arrived.
+TEST(NodeProcess, MatchedButSilentInputIsReportedAsStalledCountedAndClearsWhenDataResumes) {
+  const int domain = ppf::test::TestDomainId(13);
+  const std::string dir = TempDir("ppf_node_test");
+  const std::string log = dir + "/node.log";
+  ChildProcess node;
+  ASSERT_NO_FATAL_FAILURE(StartNode(node, dir, domain,
+                                    "queues: {scan_capacity: 100}\n"
+                                    "diagnostics: {period_s: 0.5, stall_warn_s: 2.0}\n"));
+  TestParticipant driver(domain, kProfiles, kProfile, "test_driver");
+  ASSERT_TRUE(driver.ok()) << driver.error;
+  WriterMatches cloud_m, imu_m;
+  auto* cloud_w =
+      driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
+                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 50), &cloud_m);
+  auto* imu_w =
+      driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
+                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 1000), &imu_m);
+  Collector<nav_msgs::msg::Odometry> odom;
+  ASSERT_NE(driver.Reader(new nav_msgs::msg::OdometryPubSubType(), "rt/odometry",
+                          ppf::dds::KeepAllReaderQos(), &odom),
+            nullptr);
+  ASSERT_TRUE(cloud_w && imu_w);
+  ASSERT_TRUE(
+      WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 && odom.matched > 0; }, 20s));
+  ASSERT_TRUE(WaitForNodeInputsMatched(log, 1, 1, 20s)) << "see " << log;
+
+  sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
+  const int kScans = 10;
+  int64_t imu_t = 0;
+  uint64_t seq = 0;
+  ASSERT_NO_FATAL_FAILURE(DriveStaticRoom(imu_w, cloud_w, cloud, kScans, &seq, &imu_t));
+  const std::string stalled_points = "] [WARN] points: stalled: nothing received for ";
+  const std::string stalled_imu = "] [WARN] imu: stalled: nothing received for ";
+  EXPECT_EQ(CountLinesWith(ReadTextFile(log), "stalled"), 0) << "a stall while data flowed";
+
+  // Silence, writers alive and matched.
+  const auto silent_from = std::chrono::steady_clock::now();
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        const std::string l = ReadTextFile(log);
+        return CountLinesWith(l, stalled_points) > 0 && CountLinesWith(l, stalled_imu) > 0 &&
+               CountLinesWith(l, "status=stalled (no data on points+imu)") > 0;
+      },
+      15s))
+      << "see " << log;
+  // Not before stall_warn_s of silence.
+  EXPECT_GE(std::chrono::steady_clock::now() - silent_from, 1900ms);
+  {
+    const std::string l = ReadTextFile(log);
+    EXPECT_EQ(CountLinesWith(l, stalled_points), 1) << "one line when the episode starts";
+    EXPECT_EQ(CountLinesWith(l, "1 publisher(s) matched (the publisher stopped sending"), 2);
+  }
+
+  // The data resumes (stamps go on where they stopped): the stall ends and the status clears.
+  ASSERT_NO_FATAL_FAILURE(
+      DriveStaticRoom(imu_w, cloud_w, cloud, 2 * kScans, &seq, &imu_t, kScans + 1));
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        const std::string l = ReadTextFile(log);
+        const size_t p = l.find("] [INFO] points: data resumed after a silence of at least ");
+        const size_t i = l.find("] [INFO] imu: data resumed after a silence of at least ");
+        if (p == std::string::npos || i == std::string::npos) return false;
+        return l.find("status=ok ", std::max(p, i)) != std::string::npos;
+      },
+      10s))
+      << "see " << log;
+  WaitUntil([&] { return odom.Count() >= 2 * static_cast<size_t>(kScans) - 2; }, 20s);
+  std::this_thread::sleep_for(300ms);
+  std::string line;
+  ASSERT_NO_FATAL_FAILURE(StopNode(node, &line));
+  EXPECT_EQ(SummaryField(line, "points_stalls"), 1.0);
+  EXPECT_EQ(SummaryField(line, "imu_stalls"), 1.0);
+  // Same timeline across the pause: no reset, every scan processed.
+  EXPECT_EQ(SummaryField(line, "resets"), 0.0);
+  EXPECT_EQ(SummaryField(line, "scans_processed"), 2.0 * kScans);
+  EXPECT_EQ(CountLinesWith(ReadTextFile(log), "  stalls     points 1  imu 1  "), 1);
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }
 

@@ -31,6 +31,9 @@ class NodeInputs::CloudPool : public std::enable_shared_from_this<CloudPool> {
     return m;
   }
   void Return(std::unique_ptr<sensor_msgs::msg::PointCloud2> m) {
+    // A buffer keeps the capacity of the largest cloud it held: one that grew for an unusually
+    // large cloud is freed rather than kept resident for the ordinary scans that follow.
+    if (m->data().capacity() > kMaxPooledBytes) return;
     std::lock_guard<std::mutex> lock(mutex_);
     if (free_.size() < kMax) free_.push_back(std::move(m));
   }
@@ -44,6 +47,8 @@ class NodeInputs::CloudPool : public std::enable_shared_from_this<CloudPool> {
 
  private:
   static constexpr size_t kMax = 8;
+  // Well above a 128-beam LiDAR's scan.
+  static constexpr size_t kMaxPooledBytes = 32u << 20;
   std::mutex mutex_;
   std::vector<std::unique_ptr<sensor_msgs::msg::PointCloud2>> free_;
 };
@@ -125,9 +130,14 @@ bool NodeInputs::Create(fdds::DomainParticipant* participant, fdds::Subscriber* 
   }
   cloud_listener_ = std::make_unique<CloudListener>(this);
   imu_listener_ = std::make_unique<ImuListener>(this);
-  fdds::DataReader* points_reader = subscriber->create_datareader(
-      points_topic, SensorReaderQos(config_.sensor_reliability, config_.sensor_depth),
-      cloud_listener_.get());
+  fdds::DataReaderQos points_qos =
+      SensorReaderQos(config_.sensor_reliability, config_.sensor_depth);
+  // Payloads allocated per sample and freed once taken: a reusing history keeps each slot at the
+  // largest cloud it ever held, so one huge cloud (refused or not) stayed resident for good.
+  points_qos.endpoint().history_memory_policy =
+      eprosima::fastrtps::rtps::DYNAMIC_RESERVE_MEMORY_MODE;
+  fdds::DataReader* points_reader =
+      subscriber->create_datareader(points_topic, points_qos, cloud_listener_.get());
   // IMU: deeper reader history than clouds, a burst of 400 Hz samples must not be overwritten
   // before the listener takes them.
   fdds::DataReader* imu_reader = subscriber->create_datareader(
@@ -246,7 +256,9 @@ void NodeInputs::OnClouds(fdds::DataReader* reader) {
     // Size first: a cloud declaring more points than the bound is refused before anything
     // looks at its data.
     if (sample.valid && !CheckCloudSize(*buffer)) {
-      pool_->Return(std::move(buffer));
+      // Freed, not pooled: the buffer now has the refused cloud's capacity, which the pool would
+      // keep resident for good.
+      buffer.reset();
       continue;
     }
     std::string error;

@@ -1,5 +1,7 @@
 #include "ppf_dds_node/node_config.hpp"
 
+#include <cmath>
+
 #include "ppf_core/config_table.hpp"
 
 namespace ppf::dds {
@@ -56,6 +58,10 @@ void ValidateNodeConfig(NodeConfig* c, NodeConfigReport* r) {
     c->diagnostics_period_s = 5.0;
   }
   if (!(c->malformed_log_interval_s >= 0.0)) c->malformed_log_interval_s = 1.0;
+  if (std::isnan(c->stall_warn_s)) {
+    r->warnings.push_back("diagnostics.stall_warn_s is not a number: using 5");
+    c->stall_warn_s = 5.0;
+  }
   if (c->participant.domain_id < 0 || c->participant.domain_id > 232) {
     r->ok = false;
     r->error = "dds.domain_id must be in 0..232";
@@ -111,6 +117,7 @@ ConfigTable NodeConfigTable(NodeConfig* c) {
   t.Add("trajectory.tum_file", &c->tum_file);
   t.Add("diagnostics.period_s", &c->diagnostics_period_s);
   t.Add("diagnostics.malformed_log_interval_s", &c->malformed_log_interval_s);
+  t.Add("diagnostics.stall_warn_s", &c->stall_warn_s);
   return t;
 }
 

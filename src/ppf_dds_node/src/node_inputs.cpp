@@ -1,6 +1,7 @@
 #include "node_inputs.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <mutex>
 #include <optional>
 #include <vector>
@@ -30,6 +31,9 @@ class NodeInputs::CloudPool : public std::enable_shared_from_this<CloudPool> {
     return m;
   }
   void Return(std::unique_ptr<sensor_msgs::msg::PointCloud2> m) {
+    // A buffer keeps the capacity of the largest cloud it held: one that grew for an unusually
+    // large cloud is freed rather than kept resident for the ordinary scans that follow.
+    if (m->data().capacity() > kMaxPooledBytes) return;
     std::lock_guard<std::mutex> lock(mutex_);
     if (free_.size() < kMax) free_.push_back(std::move(m));
   }
@@ -43,6 +47,8 @@ class NodeInputs::CloudPool : public std::enable_shared_from_this<CloudPool> {
 
  private:
   static constexpr size_t kMax = 8;
+  // Well above a 128-beam LiDAR's scan.
+  static constexpr size_t kMaxPooledBytes = 32u << 20;
   std::mutex mutex_;
   std::vector<std::unique_ptr<sensor_msgs::msg::PointCloud2>> free_;
 };
@@ -53,6 +59,7 @@ class NodeInputs::CloudListener : public fdds::DataReaderListener {
   void on_data_available(fdds::DataReader* reader) override { inputs_->OnClouds(reader); }
   void on_subscription_matched(fdds::DataReader*,
                                const fdds::SubscriptionMatchedStatus& s) override {
+    inputs_->points_stall_.OnMatched(s.current_count, Clock::now());
     Log(Level::kInfo, "points: " + std::to_string(s.current_count) + " publisher(s) matched");
   }
   void on_requested_incompatible_qos(fdds::DataReader*,
@@ -74,6 +81,7 @@ class NodeInputs::ImuListener : public fdds::DataReaderListener {
   }
   void on_subscription_matched(fdds::DataReader*,
                                const fdds::SubscriptionMatchedStatus& s) override {
+    inputs_->imu_stall_.OnMatched(s.current_count, Clock::now());
     Log(Level::kInfo, "imu: " + std::to_string(s.current_count) + " publisher(s) matched");
   }
   void on_requested_incompatible_qos(fdds::DataReader*,
@@ -99,7 +107,9 @@ NodeInputs::NodeInputs(const NodeConfig& c, NodeStats* stats)
       empty_log_(c.malformed_log_interval_s),
       large_log_(c.malformed_log_interval_s),
       stamp_log_(c.malformed_log_interval_s),
-      jump_log_(c.malformed_log_interval_s) {}
+      jump_log_(c.malformed_log_interval_s),
+      points_stall_(c.stall_warn_s),
+      imu_stall_(c.stall_warn_s) {}
 
 NodeInputs::~NodeInputs() = default;
 
@@ -120,9 +130,14 @@ bool NodeInputs::Create(fdds::DomainParticipant* participant, fdds::Subscriber* 
   }
   cloud_listener_ = std::make_unique<CloudListener>(this);
   imu_listener_ = std::make_unique<ImuListener>(this);
-  fdds::DataReader* points_reader = subscriber->create_datareader(
-      points_topic, SensorReaderQos(config_.sensor_reliability, config_.sensor_depth),
-      cloud_listener_.get());
+  fdds::DataReaderQos points_qos =
+      SensorReaderQos(config_.sensor_reliability, config_.sensor_depth);
+  // Payloads allocated per sample and freed once taken: a reusing history keeps each slot at the
+  // largest cloud it ever held, so one huge cloud (refused or not) stayed resident for good.
+  points_qos.endpoint().history_memory_policy =
+      eprosima::fastrtps::rtps::DYNAMIC_RESERVE_MEMORY_MODE;
+  fdds::DataReader* points_reader =
+      subscriber->create_datareader(points_topic, points_qos, cloud_listener_.get());
   // IMU: deeper reader history than clouds, a burst of 400 Hz samples must not be overwritten
   // before the listener takes them.
   fdds::DataReader* imu_reader = subscriber->create_datareader(
@@ -150,6 +165,62 @@ void NodeInputs::FlushLogs() {
   }
 }
 
+namespace {
+
+std::string Seconds(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.1f", s);
+  return buf;
+}
+
+// One stream's stall events as log lines; counts the counted episodes into `counter`.
+void ReportStall(const std::string& stream, StallWatch* w, NodeStats* stats,
+                 uint64_t NodeSummary::*counter) {
+  const StallWatch::Poll p = w->Check(Clock::now());
+  const std::string matched = std::to_string(w->matched()) + " publisher(s) matched";
+  switch (p.event) {
+    case StallWatch::Event::kNone:
+      break;
+    case StallWatch::Event::kStalled:
+      if (p.counted) {
+        const uint64_t n = stats->Add(counter);
+        Log(Level::kWarn, stream + ": stalled: nothing received for " + Seconds(p.silent_s) +
+                              " s although " + matched +
+                              " (the publisher stopped sending, or the transport stopped "
+                              "delivering; stall " +
+                              std::to_string(n) + ")");
+      } else {
+        Log(Level::kWarn, stream + ": " + matched + " " + Seconds(p.silent_s) +
+                              " s ago, nothing received yet (a replay not started? a driver "
+                              "not sending?)");
+      }
+      break;
+    case StallWatch::Event::kStillStalled:
+      Log(Level::kWarn, stream + ": still stalled: nothing received for " + Seconds(p.silent_s) +
+                            " s, " + matched);
+      break;
+    case StallWatch::Event::kResumed:
+      Log(Level::kInfo, stream + ": " + (p.counted ? "data resumed" : "first data") +
+                            " after a silence of at least " + Seconds(p.silent_s) + " s");
+      break;
+    case StallWatch::Event::kEnded:
+      Log(Level::kInfo, stream + ": no publisher left; the stall ended after at least " +
+                            Seconds(p.silent_s) + " s without data");
+      break;
+  }
+}
+
+}  // namespace
+
+std::string NodeInputs::CheckStalls() {
+  ReportStall("points", &points_stall_, stats_, &NodeSummary::points_stalls);
+  ReportStall("imu", &imu_stall_, stats_, &NodeSummary::imu_stalls);
+  std::string stalled;
+  if (points_stall_.stalled()) stalled = "points";
+  if (imu_stall_.stalled()) stalled += stalled.empty() ? "imu" : "+imu";
+  return stalled;
+}
+
 void NodeInputs::OnClouds(fdds::DataReader* reader) {
   while (true) {
     const Clock::time_point received = Clock::now();
@@ -163,7 +234,13 @@ void NodeInputs::OnClouds(fdds::DataReader* reader) {
       pool_->Return(std::move(buffer));
       break;
     }
-    if (!info.valid_data || !accepting_.load()) {
+    if (!info.valid_data) {
+      pool_->Return(std::move(buffer));
+      continue;
+    }
+    // Any sample, malformed ones too: the stream is alive.
+    points_stall_.OnSample(received);
+    if (!accepting_.load()) {
       pool_->Return(std::move(buffer));
       continue;
     }
@@ -179,7 +256,9 @@ void NodeInputs::OnClouds(fdds::DataReader* reader) {
     // Size first: a cloud declaring more points than the bound is refused before anything
     // looks at its data.
     if (sample.valid && !CheckCloudSize(*buffer)) {
-      pool_->Return(std::move(buffer));
+      // Freed, not pooled: the buffer now has the refused cloud's capacity, which the pool would
+      // keep resident for good.
+      buffer.reset();
       continue;
     }
     std::string error;
@@ -257,6 +336,7 @@ void NodeInputs::OnImu(fdds::DataReader* reader) {
     fdds::SampleInfo info;
     if (reader->take_next_sample(&sample, &info) != ReturnCode_t::RETCODE_OK) break;
     if (!info.valid_data) continue;
+    imu_stall_.OnSample(Clock::now());
     if (!accepting_.load()) continue;
     if (const uint64_t missing =
             imu_gaps_.Count(info.sample_identity.writer_guid(),

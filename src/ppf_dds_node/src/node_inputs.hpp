@@ -22,6 +22,7 @@
 #include "ppf_dds_node/gap_counter.hpp"
 #include "ppf_dds_node/logging.hpp"
 #include "ppf_dds_node/node_config.hpp"
+#include "ppf_dds_node/stall_watch.hpp"
 #include "ppf_dds_node/time_ordered_queue.hpp"
 #include "ppf_msgs_cdr/msg_traits.hpp"
 
@@ -65,6 +66,11 @@ class NodeInputs {
   // Reports the suppressed tails of the rate-limited input logs.
   void FlushLogs();
 
+  // Diagnostics thread only: logs stall episodes starting, growing and ending, and counts the
+  // ones after data had flowed. Returns the streams stalled now ("points", "imu", "points+imu")
+  // or "" for the status line.
+  std::string CheckStalls();
+
  private:
   class CloudPool;
   class CloudListener;
@@ -93,6 +99,9 @@ class NodeInputs {
   RateLimitedLog malformed_log_, imu_malformed_log_, drop_log_, empty_log_, large_log_, stamp_log_,
       jump_log_;
   RateLimitedLog lost_log_{1.0};
+  // Matched-but-silent watch per stream: listeners mark samples and matches, the diagnostics
+  // thread polls (CheckStalls).
+  StallWatch points_stall_, imu_stall_;
 };
 
 }  // namespace ppf::dds

@@ -86,7 +86,8 @@ NodeSummary NodeStats::Snapshot() const {
   return s;
 }
 
-std::string NodeStats::PeriodicLine(size_t* latency_mark, const QueueFill& queues) const {
+std::string NodeStats::PeriodicLine(size_t* latency_mark, const QueueFill& queues,
+                                    const std::string& stalled) const {
   NodeSummary s;
   double lat50, lat99, ovh99;
   size_t n;
@@ -99,8 +100,9 @@ std::string NodeStats::PeriodicLine(size_t* latency_mark, const QueueFill& queue
     ovh99 = overhead_ms_.PercentileSince(*latency_mark, 99);
   }
   std::ostringstream o;
-  o << std::fixed << std::setprecision(2)
-    << "status=" << (s.last_status.empty() ? "waiting" : s.last_status)
+  o << std::fixed << std::setprecision(2) << "status="
+    << (!stalled.empty() ? "stalled (no data on " + stalled + ")"
+                         : (s.last_status.empty() ? "waiting" : s.last_status))
     << " scans rx=" << s.scans_received << " proc=" << s.scans_processed
     << " odom=" << s.odometry_published << " dropped=" << s.scans_dropped
     << " malformed=" << s.scans_malformed + s.imu_malformed << " imu rx=" << s.imu_received
@@ -126,6 +128,7 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " scans_bad_stamp=" << s.scans_bad_stamp << " points_nonfinite=" << s.points_nonfinite
     << " imu_duplicate=" << s.imu_duplicate << " imu_outliers=" << s.imu_outliers
     << " imu_gaps_bridged=" << s.imu_gaps_bridged << " imu_gap_max_s=" << s.imu_gap_max_s
+    << " points_stalls=" << s.points_stalls << " imu_stalls=" << s.imu_stalls
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

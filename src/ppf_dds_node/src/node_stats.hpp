@@ -56,7 +56,10 @@ class NodeStats {
 
   NodeSummary Snapshot() const;
   // The periodic diagnostics line over the scans published since `*latency_mark`; advances it.
-  std::string PeriodicLine(size_t* latency_mark, const QueueFill& queues) const;
+  // `stalled` names the streams matched but silent (NodeInputs::CheckStalls), "" if none: the
+  // status then says stalled, whatever the core said last.
+  std::string PeriodicLine(size_t* latency_mark, const QueueFill& queues,
+                           const std::string& stalled = "") const;
   static std::string FormatSummary(const NodeSummary& s);
 
  private:

@@ -6,6 +6,7 @@
 // This file only creates them in order, runs the diagnostics loop and tears them down.
 #include "ppf_dds_node/ppf_node.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
@@ -93,20 +94,30 @@ void PpfNode::run() {
   std::thread executor([&m] { m.executor->Run(); });
   const auto period = std::chrono::duration_cast<Clock::duration>(
       std::chrono::duration<double>(m.config.diagnostics_period_s));
+  // The stall watch is polled more often than the status line, so a stall is reported about
+  // diagnostics.stall_warn_s after the last sample, not up to a status period later.
+  const double tick_s = m.config.stall_warn_s > 0.0
+                            ? std::clamp(m.config.stall_warn_s / 4.0, 0.05, 1.0)
+                            : m.config.diagnostics_period_s;
+  const auto stall_tick =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(tick_s));
   size_t latency_mark = 0;
   auto next_log = Clock::now() + period;
+  std::string stalled;
   {
     std::unique_lock<std::mutex> lock(m.stop_mutex);
     while (!m.stop_requested) {
-      m.stop_cv.wait_until(lock, next_log, [&m] { return m.stop_requested; });
+      m.stop_cv.wait_until(lock, std::min(next_log, Clock::now() + stall_tick),
+                           [&m] { return m.stop_requested; });
       if (m.stop_requested) break;
+      lock.unlock();
+      stalled = m.inputs.CheckStalls();
       if (Clock::now() >= next_log) {
-        lock.unlock();
         m.FlushLogs();
-        Log(Level::kInfo, m.stats.PeriodicLine(&latency_mark, m.inputs.Fill()));
-        lock.lock();
+        Log(Level::kInfo, m.stats.PeriodicLine(&latency_mark, m.inputs.Fill(), stalled));
         next_log += period;
       }
+      lock.lock();
     }
   }
   // Drain: stop accepting, process what is queued, flush the core.

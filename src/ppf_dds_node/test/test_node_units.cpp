@@ -13,6 +13,7 @@
 #include "ppf_dds_node/latency_stats.hpp"
 #include "ppf_dds_node/logging.hpp"
 #include "ppf_dds_node/node_config.hpp"
+#include "ppf_dds_node/stall_watch.hpp"
 #include "ppf_dds_node/time_ordered_queue.hpp"
 #include "ppf_msgs_cdr/cdr.hpp"
 #include "ppf_msgs_cdr/cdr_payload.hpp"
@@ -64,6 +65,57 @@ TEST(RateLimitedLog, SuppressedLinesAreCountedAndFlushed) {
             std::string::npos)
       << out;
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 2) << out;
+}
+
+// A matched stream going silent: one event when the episode starts, more only as the silence
+// doubles, one when data resumes; counted only once data had flowed since the publishers
+// matched, so a replay not yet sending is not a stall in the summary.
+TEST(StallWatch, EpisodesStartGrowAndEndAndCountOnlyAfterDataFlowed) {
+  using E = StallWatch::Event;
+  const auto t0 = StallWatch::Clock::now();
+  auto at = [t0](double s) {
+    return t0 + std::chrono::duration_cast<StallWatch::Clock::duration>(
+                    std::chrono::duration<double>(s));
+  };
+  StallWatch w(2.0);
+  EXPECT_EQ(w.Check(at(100)).event, E::kNone) << "nothing matched: silence is no stall";
+  w.OnMatched(1, at(100));
+  EXPECT_EQ(w.Check(at(101.9)).event, E::kNone);
+  StallWatch::Poll p = w.Check(at(102.1));
+  EXPECT_EQ(p.event, E::kStalled);
+  EXPECT_FALSE(p.counted) << "never sent since it matched";
+  EXPECT_TRUE(w.stalled());
+  w.OnSample(at(103));
+  p = w.Check(at(103.1));
+  EXPECT_EQ(p.event, E::kResumed);
+  EXPECT_FALSE(w.stalled());
+
+  w.OnSample(at(104));
+  EXPECT_EQ(w.Check(at(105.9)).event, E::kNone);
+  p = w.Check(at(106.2));
+  EXPECT_EQ(p.event, E::kStalled);
+  EXPECT_TRUE(p.counted) << "data had flowed, then stopped";
+  EXPECT_NEAR(p.silent_s, 2.2, 1e-6);
+  EXPECT_TRUE(w.counted());
+  EXPECT_EQ(w.Check(at(108.0)).event, E::kNone) << "no line per poll";
+  p = w.Check(at(108.5));
+  EXPECT_EQ(p.event, E::kStillStalled) << "silence doubled (4.4 s)";
+  EXPECT_EQ(w.Check(at(112.0)).event, E::kNone);
+  EXPECT_EQ(w.Check(at(113.1)).event, E::kStillStalled) << "doubled again (9 s)";
+  w.OnMatched(0, at(114));
+  p = w.Check(at(114.1));
+  EXPECT_EQ(p.event, E::kEnded) << "publisher gone: no longer a stall";
+  EXPECT_EQ(w.Check(at(130)).event, E::kNone);
+
+  // A publisher matching again starts afresh: silent before its first sample, not counted.
+  w.OnMatched(1, at(130));
+  p = w.Check(at(132.5));
+  EXPECT_EQ(p.event, E::kStalled);
+  EXPECT_FALSE(p.counted);
+
+  StallWatch off(0.0);
+  off.OnMatched(1, at(100));
+  EXPECT_EQ(off.Check(at(1000)).event, E::kNone);
 }
 
 TEST(NodeConfig, PartialSectionsKeepOtherDefaults) {

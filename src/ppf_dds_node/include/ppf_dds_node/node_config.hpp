@@ -65,6 +65,9 @@ struct NodeConfig {
 
   double diagnostics_period_s = 5.0;
   double malformed_log_interval_s = 1.0;
+  // A stream with a matched publisher and no sample for this long is reported as stalled
+  // (status line, WARN, counted once data had flowed); <= 0 turns the watch off.
+  double stall_warn_s = 5.0;
 };
 
 // The one report type of every config loader: the first error (naming the key) or the warnings.

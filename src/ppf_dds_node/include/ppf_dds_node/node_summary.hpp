@@ -40,6 +40,10 @@ struct NodeSummary {
   // ones reset it (resets). The longest bridged gap in seconds of sensor time.
   uint64_t imu_gaps_bridged = 0;
   double imu_gap_max_s = 0;
+  // Episodes of silence on a stream with a matched publisher, after data had flowed on it
+  // (diagnostics.stall_warn_s): the data stopped while matching said all was well.
+  uint64_t points_stalls = 0;
+  uint64_t imu_stalls = 0;
   double latency_p50_ms = 0, latency_p99_ms = 0, latency_max_ms = 0;
   double core_p50_ms = 0, core_p99_ms = 0;
   // overhead = latency - core - imu_wait - behind_core: the node's own cost (decode, hand-over,

@@ -40,6 +40,8 @@ namespace fdds = eprosima::fastdds::dds;
 // The loopback transport profile every cross-process test runs on.
 inline const char* const kProfiles = PPF_DDS_CONFIG_DIR "/test_loopback.xml";
 inline const char* const kProfile = "ppf_test_loopback";
+// UDP only: for tests that SIGKILL a participant (see the profile's comment).
+inline const char* const kProfileUdp = "ppf_test_loopback_udp";
 
 // A fresh directory /tmp/<prefix>_XXXXXX (mkdtemp); "/tmp" if it cannot be made.
 inline std::string TempDir(const std::string& prefix) {

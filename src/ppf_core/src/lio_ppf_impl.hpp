@@ -1,0 +1,131 @@
+// LioPpf's state and stages (private: not installed, included only by the lio_ppf*.cpp files).
+//
+// One struct, split by what a reader looks for:
+//   lio_ppf.cpp            facade, input (AddImu, AddScan), the queue (Process), resets and the
+//                          IMU-mode decision
+//   lio_ppf_process.cpp    one scan's path (ProcessOne) and the result
+//   lio_ppf_init.cpp       the filter's start: static IMU initialization and the moving start
+//   lio_ppf_lidar_only.cpp prediction without the IMU's translation: constant-velocity and gyro
+//                          prediction and the guesses of the coarse alignment (LiDAR-only mode
+//                          and the moving start's window)
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "ppf_core/hypothesis_search.hpp"
+#include "ppf_core/lio_ppf.hpp"
+#include "ppf_core/motion_model.hpp"
+#include "ppf_core/moving_start.hpp"
+#include "ppf_core/preprocess.hpp"
+#include "ppf_core/skeleton_tracker.hpp"
+
+namespace ppf {
+
+struct LioPpf::Impl {
+  struct QueuedScan {
+    uint64_t id = 0;
+    bool rejected = false;
+    std::string error;
+    double stamp_s = 0.0;
+    double decode_ms = 0.0;
+    DecodedScan scan;
+  };
+
+  using Clock = std::chrono::steady_clock;
+  static double MsSince(Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  }
+  static void Append(std::string* reason, const std::string& what) {
+    if (what.empty()) return;
+    if (!reason->empty()) *reason += "; ";
+    *reason += what;
+  }
+
+  explicit Impl(const Config& c);
+
+  // lio_ppf.cpp: input and queue.
+  void Log(LogLevel level, const std::string& msg) const {
+    if (config.log) config.log(level, msg);
+  }
+  void ResetFilter(const std::string& reason);
+  void AddImu(const ImuSample& s);
+  uint64_t AddScan(const CloudView& cloud);
+  ScanResult Rejected(const QueuedScan& q) const;
+  std::vector<ScanResult> Process(bool flush);
+  bool DecideImuMode(bool flush);
+
+  // lio_ppf_process.cpp: one scan.
+  ScanResult ProcessOne(QueuedScan& q);
+  Eigen::Isometry3d WorldFromMap() const;
+  void FillState(ScanResult* r) const;
+  void WidenForGap(double gap_s);
+  void InsertScattered(const ScanFrame& f, const Eigen::Isometry3d& T_world_lidar, ScanResult* r);
+
+  // lio_ppf_init.cpp: the filter's start.
+  void StartFilter();
+  void MovingInitStep(ScanResult* r);
+  void SetMovingInitResult(ScanResult* r) const;
+  void RestartMovingInit(const std::string& why);
+  void ClearMovingInit();
+  void StartFilterMoving(const MovingStartEstimate& e);
+
+  // lio_ppf_lidar_only.cpp: prediction without the IMU's translation.
+  void StartLidarOnly(double t);
+  void PredictConstantVelocity(double t_end, PoseTrace* trace);
+  void SetLidarOnlyPrior();
+  void PredictGyro(double t_end, PoseTrace* trace);
+  CoarseAlignment AlignGuesses(double t_end);
+
+  Config config;
+  TimeFieldDecoder decoder;
+  ImuInitializer init;
+  VoxelMap map;
+  std::shared_ptr<KnnResidualProvider> knn;
+  std::shared_ptr<ScanSplitter> splitter;
+  std::shared_ptr<SkeletonTracker> ppf_tracker;  // PPF: built-in kPpf splitter (may be replaced)
+  std::vector<std::shared_ptr<ResidualProvider>> extra;
+  std::deque<ImuSample> imu;
+  std::deque<QueuedScan> scans;
+  std::vector<ScanResult> pending;
+  struct BridgedGap {
+    double begin_s;  // last IMU stamp before the gap
+    double length_s;
+  };
+  std::deque<BridgedGap> bridged_gaps;  // not yet propagated across
+  NavState state;
+  ScanFrame frame;
+  VoxelGridDownsampler downsampler;  // keeps its hash table between scans
+  bool initialized = false;
+  bool map_initialized = false;
+  bool lidar_only = false;   // decided: no IMU (DecideImuMode)
+  bool lio_decided = false;  // decided: the IMU predicts
+  // Moving start (moving_start.hpp): scans are registered LiDAR-only until the window is full.
+  bool moving_init = false;
+  bool moving_refused = false;  // the IMU was refused for motion: the window decides
+  bool imu_prediction = false;  // moving start: this scan's prediction is PredictGyro's
+  std::vector<MovingStartPose> moving_poses;  // IMU poses of the window's registered scans
+  int moving_scans = 0;  // registered since the window (re)started, warm-up included
+  static constexpr int kMovingWarmupScans = 5;
+  double acc_scale = 1.0;          // of the initialization in use
+  ConstantVelocityModel motion;    // LiDAR-only prediction (IMU frame poses)
+  std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
+  size_t ignored_imu = 0;
+  double map_init_stamp_s = 0.0;
+  double last_imu_stamp = -std::numeric_limits<double>::infinity();
+  double last_scan_end = -std::numeric_limits<double>::infinity();
+  size_t dropped_imu = 0;
+  int scans_since_prune = 0;
+  uint64_t last_input_id = 0;
+  Eigen::Vector3d gyro_at_scan_end = Eigen::Vector3d::Zero();  // raw, of the scan in ProcessOne
+};
+
+}  // namespace ppf

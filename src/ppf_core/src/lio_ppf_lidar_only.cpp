@@ -1,0 +1,143 @@
+// Prediction without the IMU's translation: the LiDAR-only mode (imu.mode none, or auto without
+// IMU data) and the moving start's window. The constant-velocity model (motion_model.hpp), or the
+// gyro for the turn, predicts; the guesses around it are aligned coarsely (hypothesis_search.hpp).
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "lio_ppf_impl.hpp"
+#include "ppf_core/so3.hpp"
+
+namespace ppf {
+
+// The first scan of a LiDAR-only map: the world is its LiDAR frame. Gravity cannot be observed,
+// so it is set straight down in that frame only to make T_world_map the identity.
+void LioPpf::Impl::StartLidarOnly(double t) {
+  state = NavState();
+  state.stamp_s = t;
+  const Eigen::Isometry3d T_world_imu = config.T_imu_lidar.inverse();
+  state.R_world_imu = T_world_imu.linear();
+  state.p_world_imu = T_world_imu.translation();
+  state.gravity_world = Eigen::Vector3d(0.0, 0.0, -9.80665);
+  state.P = StateCov::Identity() * 1e-6;
+  motion.Reset();
+}
+
+// The state at t_end from the constant-velocity model; biases, velocity and gravity are not
+// observed and stay fixed (their covariance tiny and uncorrelated, so updates leave them).
+void LioPpf::Impl::PredictConstantVelocity(double t_end, PoseTrace* trace) {
+  // Before the map's first scan there is nothing to extrapolate: StartLidarOnly's pose stands.
+  const Eigen::Isometry3d T = motion.has_pose() ? motion.Predict(t_end) : state.T_world_imu();
+  *trace = motion.Trace();
+  if (!motion.has_pose()) {
+    trace->knots.front().R = T.linear();
+    trace->knots.front().p = T.translation();
+  }
+  state.R_world_imu = T.linear();
+  state.p_world_imu = T.translation();
+  state.v_world = motion.velocity_world();
+  state.stamp_s = t_end;
+  gyro_at_scan_end = motion.angular_velocity();
+  SetLidarOnlyPrior();
+}
+
+void LioPpf::Impl::SetLidarOnlyPrior() {
+  const double rot = config.lidar_only.prior_rot_std;
+  const double pos = config.lidar_only.prior_pos_std;
+  state.P = StateCov::Identity() * 1e-6;
+  state.P.block<3, 3>(kRot, kRot).diagonal().setConstant(rot * rot);
+  state.P.block<3, 3>(kPos, kPos).diagonal().setConstant(pos * pos);
+}
+
+// Moving start: the gyro measures the turn however fast it is (a hand-held sensor turns at
+// 150 deg/s); only the translation comes from the constant-velocity model. Gravity is not
+// needed for this, nor the bias (0.1 s of a few mrad/s).
+void LioPpf::Impl::PredictGyro(double t_end, PoseTrace* trace) {
+  const double t0 = motion.stamp();
+  const std::vector<ImuSample> samples(imu.begin(), imu.end());
+  PoseTrace g;
+  ImuKnot k;
+  k.t = t0;
+  k.R = motion.pose().linear();
+  k.p = motion.pose().translation();
+  k.v = motion.velocity_world();
+  std::vector<double> times{t0};
+  for (const ImuSample& s : samples) {
+    if (s.stamp_s > t0 && s.stamp_s < t_end) times.push_back(s.stamp_s);
+  }
+  times.push_back(t_end);
+  for (size_t i = 0; i + 1 < times.size(); ++i) {
+    const double h = times[i + 1] - times[i];
+    k.omega = 0.5 * (InterpolateImu(samples, times[i]).angular_velocity +
+                     InterpolateImu(samples, times[i + 1]).angular_velocity);
+    g.knots.push_back(k);
+    k.t = times[i + 1];
+    k.R = NormalizeRotation(k.R * SO3Exp(k.omega * h));
+    k.p += k.v * h;
+  }
+  k.omega = InterpolateImu(samples, t_end).angular_velocity;
+  g.knots.push_back(k);  // holds the last rate for points after t_end
+  *trace = g;
+  state.R_world_imu = k.R;
+  state.p_world_imu = k.p;
+  gyro_at_scan_end = k.omega;
+  imu_prediction = true;
+}
+
+// The guesses of hypothesis_search.hpp around the model's prediction (state at t_end); the
+// best aligned one becomes the prediction of the update and of the skeleton tracker.
+CoarseAlignment LioPpf::Impl::AlignGuesses(double t_end) {
+  const Eigen::Isometry3d& T_il = config.T_imu_lidar;
+  const double dt = t_end - motion.stamp();
+  const Eigen::Isometry3d T_last = motion.pose();
+  const Eigen::Isometry3d T_cv = motion.Predict(t_end);
+  std::vector<MotionHypothesis> h;
+  if (imu_prediction) h.push_back({"gyro", state.T_world_imu() * T_il});
+  imu_prediction = false;
+  h.push_back({"constant velocity", T_cv * T_il});
+  h.push_back({"no motion", T_last * T_il});
+  for (double scale : {0.5, 1.5}) {
+    Eigen::Isometry3d d = motion.Delta(dt);
+    d.linear() = SO3Exp(scale * SO3Log(d.linear()));
+    std::ostringstream os;
+    os << "turn x" << scale;
+    h.push_back({os.str(), T_last * d * T_il});
+  }
+  const double a = config.lidar_only.offset_deg * M_PI / 180.0;
+  auto turned = [&](const std::string& name, const Eigen::Vector3d& axis, double angle) {
+    Eigen::Isometry3d R = Eigen::Isometry3d::Identity();
+    R.linear() = SO3Exp(axis * angle);
+    h.push_back({name, T_cv * T_il * R});
+  };
+  if (a > 0.0) {
+    turned("turn z+", Eigen::Vector3d::UnitZ(), a);
+    turned("turn z-", Eigen::Vector3d::UnitZ(), -a);
+    turned("turn z++", Eigen::Vector3d::UnitZ(), 2 * a);
+    turned("turn z--", Eigen::Vector3d::UnitZ(), -2 * a);
+    turned("turn x+", Eigen::Vector3d::UnitX(), a);
+    turned("turn x-", Eigen::Vector3d::UnitX(), -a);
+    turned("turn y+", Eigen::Vector3d::UnitY(), a);
+    turned("turn y-", Eigen::Vector3d::UnitY(), -a);
+  }
+  LidarOnlyOptions options = config.lidar_only;
+  if (recent_fits.size() >= 3) {
+    std::vector<double> sorted(recent_fits.begin(), recent_fits.end());
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    options.good_fit =
+        std::min(options.good_fit, options.good_fit_relative * sorted[sorted.size() / 2]);
+  }
+  CoarseAlignment c = AlignHypotheses(frame, h, options, config.iekf, config.knn);
+  recent_fits.push_back(c.fit);
+  if (recent_fits.size() > 10) recent_fits.pop_front();
+  const Eigen::Isometry3d T_world_imu = c.T_world_lidar * T_il.inverse();
+  state.R_world_imu = T_world_imu.linear();
+  state.p_world_imu = T_world_imu.translation();
+  frame.T_world_lidar_predicted = c.T_world_lidar;
+  SetLidarOnlyPrior();
+  return c;
+}
+
+}  // namespace ppf

@@ -1,0 +1,296 @@
+// One scan's path (ProcessOne): preprocess, propagate and de-skew, then start the map (first
+// scan) or register the scan (coarse alignment when LiDAR-only, PPF split, iterated EKF), extend
+// the map, and fill the result in the gravity-aligned world frame.
+#include <algorithm>
+#include <sstream>
+#include <vector>
+
+#include "lio_ppf_impl.hpp"
+#include "ppf_core/deskew.hpp"
+
+namespace ppf {
+
+ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
+  const auto t_total = Clock::now();
+  ScanResult r;
+  r.input_id = q.id;
+  const DecodedScan& scan = q.scan;
+  r.stamp_s = scan.t_end;
+  r.scan_begin_s = scan.t_begin;
+  r.input_points = scan.input_points;
+  r.dropped_nan = scan.dropped_nan;
+  r.map_size = map.size();
+  if (!initialized && !moving_init) {
+    r.status = Status::kInitializing;
+    r.reason = init.reason().empty() ? "waiting for IMU data" : init.reason();
+    return r;
+  }
+  // The moving-start initialization registers its scans as LiDAR-only does.
+  const bool lidar = lidar_only || moving_init;
+  if (!lidar && scan.t_end <= state.stamp_s && !map_initialized) {
+    r.status = Status::kInitializing;
+    r.reason = "scan ends before IMU initialization finished";
+    return r;
+  }
+  if (scan.t_end < last_scan_end - 1e-6) {
+    std::ostringstream os;
+    os << "scan time went backwards by " << last_scan_end - scan.t_end << " s";
+    ResetFilter("");
+    Log(LogLevel::kWarn, "reset: " + os.str());
+    r.status = Status::kReset;
+    r.reason = os.str();
+    return r;
+  }
+  Append(&r.reason, scan.note);
+  if (config.mode == Mode::kPpf && !splitter) {
+    Append(&r.reason, "ppf mode requested but no ScanSplitter installed: running kNN");
+  }
+
+  // Preprocess: stride and range filter plus the voxel grid, on the raw scan; each kept point
+  // carries the mean time of its voxel (preprocess.hpp: why this comes before de-skew).
+  auto t0 = Clock::now();
+  std::vector<TimedPoint> pts;
+  PreprocessOptions pre;
+  pre.min_range = config.min_range;
+  pre.max_range = config.max_range;
+  pre.point_stride = config.point_stride;
+  pre.voxel_size = config.scan_voxel_size;
+  const PreprocessStats pre_stats = downsampler.Run(scan.points, scan.t_begin, pre, &pts);
+  r.valid_points = pre_stats.valid_points;
+  r.downsampled_points = pre_stats.downsampled_points;
+  r.timings.preprocess = q.decode_ms;
+  r.timings.downsample = MsSince(t0);
+
+  // Propagate to the scan end and de-skew the downsampled points.
+  t0 = Clock::now();
+  if (lidar && !map_initialized) StartLidarOnly(scan.t_end);
+  const double t_end = std::max(scan.t_end, state.stamp_s);
+  PoseTrace trace;
+  if (lidar) {
+    PredictConstantVelocity(t_end, &trace);
+    if (moving_init && motion.has_pose()) PredictGyro(t_end, &trace);
+  } else {
+    std::vector<ImuSample> samples(imu.begin(), imu.end());
+    PropagateImu(samples, t_end, acc_scale, config.noise, &state, &trace);
+    for (const ImuSample& s : samples) {
+      if (s.stamp_s > t_end && s.stamp_s != samples.front().stamp_s) break;
+      gyro_at_scan_end = s.angular_velocity;
+    }
+  }
+  if (!lidar && t_end - last_imu_stamp > 0.02) {
+    std::ostringstream os;
+    os << "IMU extrapolated by " << t_end - last_imu_stamp << " s (last sample held)";
+    Append(&r.reason, os.str());
+  }
+  while (!bridged_gaps.empty() && bridged_gaps.front().begin_s < t_end) {
+    WidenForGap(bridged_gaps.front().length_s);
+    r.imu_gap_s = std::max(r.imu_gap_s, bridged_gaps.front().length_s);
+    bridged_gaps.pop_front();
+  }
+  if (r.imu_gap_s > 0.0) {
+    std::ostringstream os;
+    os << "IMU gap of " << r.imu_gap_s << " s bridged";
+    Append(&r.reason, os.str());
+  }
+  frame = ScanFrame();
+  if (scan.has_time_field || scan.times_estimated) {
+    DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &frame.points_lidar, config.num_threads);
+  } else {
+    frame.points_lidar.reserve(pts.size());
+    for (const TimedPoint& tp : pts) frame.points_lidar.push_back(tp.p);
+  }
+  r.timings.deskew = MsSince(t0);
+  last_scan_end = t_end;
+  r.stamp_s = t_end;
+  // Keep one sample at or before the state time for the next interpolation (the moving-start
+  // initialization keeps all: it preintegrates from its first scan).
+  while (!moving_init && imu.size() > 2 && imu[1].stamp_s <= state.stamp_s) imu.pop_front();
+
+  frame.stamp_s = t_end;
+  frame.labels.assign(frame.points_lidar.size(), PointLabel::kScattered);
+  frame.T_imu_lidar = config.T_imu_lidar;
+  frame.T_world_lidar_predicted = state.T_world_imu() * config.T_imu_lidar;
+  frame.map = &map;
+  frame.residual_max_range = config.iekf.residual_max_range;
+
+  if (!map_initialized) {
+    t0 = Clock::now();
+    InsertScattered(frame, frame.T_world_lidar_predicted, &r);
+    map_initialized = !frame.points_lidar.empty();
+    map_init_stamp_s = t_end;
+    if (lidar && map_initialized) motion.Update(state.T_world_imu(), t_end);
+    if (lidar_only && map_initialized) {
+      Append(&r.reason, "LiDAR-only (no IMU): world frame = this scan's LiDAR frame");
+    }
+    r.timings.map_insert = MsSince(t0);
+    r.status = map_initialized ? Status::kOk : Status::kInitializing;
+    Append(&r.reason, map_initialized ? "map initialized" : "empty first scan");
+    r.pose_valid = true;
+    r.scattered_points = frame.points_lidar.size();
+    FillState(&r);
+    r.map_size = map.size();
+    r.timings.total = MsSince(t_total) + q.decode_ms;
+    return r;
+  }
+
+  CoarseAlignment coarse;
+  if (lidar) {
+    t0 = Clock::now();
+    coarse = AlignGuesses(t_end);
+    r.timings.guesses = MsSince(t0);
+  }
+
+  if (config.mode == Mode::kPpf && splitter) {
+    t0 = Clock::now();
+    splitter->Split(&frame);
+    frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
+    r.timings.ppf = MsSince(t0);
+  }
+  for (PointLabel l : frame.labels) {
+    if (l == PointLabel::kSkeleton)
+      ++r.skeleton_points;
+    else if (l == PointLabel::kScattered)
+      ++r.scattered_points;
+    else
+      ++r.discarded_points;
+  }
+
+  std::vector<ResidualProvider*> providers;
+  providers.push_back(knn.get());
+  if (config.mode == Mode::kPpf) {
+    // PPF: the built-in tracker's skeleton residuals, only while it is the installed splitter.
+    if (ppf_tracker && splitter == ppf_tracker) {
+      providers.push_back(ppf_tracker->residual_provider().get());
+    }
+    for (auto& p : extra) providers.push_back(p.get());
+  }
+  for (ResidualProvider* p : providers) p->BeginScan(frame);
+  IekfOptions iekf = config.iekf;
+  if (t_end - map_init_stamp_s < iekf.refined_gate_after_s) iekf.refined_gate = 0.0;
+  const IekfReport rep = IekfUpdate(iekf, config.T_imu_lidar, providers, &state);
+  r.timings.residuals = rep.residuals_ms;
+  r.timings.update = rep.update_ms;
+  r.iterations = rep.iterations;
+  r.converged = rep.converged;
+  r.eig_rotation = rep.eig_rotation;
+  r.eig_translation = rep.eig_translation;
+  for (size_t i = 0; i < rep.rows_per_provider.size(); ++i) {
+    if (i == 0)
+      r.knn_residuals = static_cast<size_t>(rep.rows_per_provider[i]);
+    else
+      r.skeleton_residuals += static_cast<size_t>(rep.rows_per_provider[i]);
+  }
+  const Eigen::Isometry3d T_world_lidar = state.T_world_imu() * config.T_imu_lidar;
+  if (config.mode == Mode::kPpf && splitter) {
+    t0 = Clock::now();
+    splitter->Finish(frame, T_world_lidar);
+    if (ppf_tracker && splitter == ppf_tracker) {
+      r.skeleton_planes = ppf_tracker->window().planes();  // map frame until FillState
+      r.skeleton_patches = ppf_tracker->patch_map().num_patches();
+    }
+    r.timings.ppf += MsSince(t0);
+  }
+  for (ResidualProvider* p : providers) p->EndScan(T_world_lidar);
+
+  if (rep.skipped) {
+    r.status = Status::kDegenerate;
+    std::ostringstream os;
+    os << "too few residuals (" << rep.num_rows << " < " << config.iekf.min_rows
+       << "): " << (lidar ? "motion-model prediction only" : "IMU prediction only");
+    Append(&r.reason, os.str());
+  } else if (rep.degenerate) {
+    r.status = Status::kDegenerate;
+    Append(&r.reason, "degenerate: " + rep.degenerate_reason);
+  } else {
+    r.status = Status::kOk;
+  }
+  if (lidar) {
+    r.fit = coarse.fit;
+    r.motion_guess = coarse.name;
+    r.guesses_tried = coarse.tried;
+    if (coarse.fit < config.lidar_only.min_fit) {
+      std::ostringstream os;
+      os.precision(2);
+      os << "LiDAR-only: poor fit " << coarse.fit << " < " << config.lidar_only.min_fit << " after "
+         << coarse.tried << " guesses (best " << coarse.name << "): the pose may be off";
+      r.status = Status::kDegenerate;
+      Append(&r.reason, os.str());
+    }
+    motion.Update(state.T_world_imu(), t_end);
+  }
+  r.pose_valid = true;
+
+  t0 = Clock::now();
+  // A scan that could not be registered is not trusted to extend the map.
+  if (!rep.skipped) InsertScattered(frame, T_world_lidar, &r);
+  if (config.map_radius > 0.0 && ++scans_since_prune >= 10) {
+    map.RemoveFarFrom(state.p_world_imu, config.map_radius);
+    scans_since_prune = 0;
+  }
+  r.timings.map_insert = MsSince(t0);
+  r.map_size = map.size();
+  FillState(&r);
+  r.timings.total = MsSince(t_total) + q.decode_ms;
+  return r;
+}
+
+// Rotation of the map frame into the frame whose -z is the estimated gravity: the smallest one,
+// so yaw is kept.
+Eigen::Isometry3d LioPpf::Impl::WorldFromMap() const {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond::FromTwoVectors(state.gravity_world.normalized(),
+                                                  -Eigen::Vector3d::UnitZ())
+                   .toRotationMatrix();
+  return T;
+}
+
+void LioPpf::Impl::FillState(ScanResult* r) const {
+  r->T_world_map = WorldFromMap();
+  const Eigen::Matrix3d R = r->T_world_map.linear();
+  r->T_world_imu = r->T_world_map * state.T_world_imu();
+  r->T_world_lidar = r->T_world_imu * config.T_imu_lidar;
+  r->velocity_world = R * state.v_world;
+  r->angular_velocity = gyro_at_scan_end - state.gyro_bias;
+  if (config.output_deskewed_points) {
+    r->deskewed_points_lidar = frame.points_lidar;
+    r->deskewed_point_labels = frame.labels;
+  }
+  r->gyro_bias = state.gyro_bias;
+  r->acc_bias = state.acc_bias;
+  r->gravity_map = state.gravity_world;
+  // Rotation errors are body-frame (unchanged); position and velocity errors turn with the map.
+  StateCov J = StateCov::Identity();
+  J.block<3, 3>(kPos, kPos) = R;
+  J.block<3, 3>(kVel, kVel) = R;
+  r->covariance = J * state.P * J.transpose();
+  r->pose_covariance = r->covariance.topLeftCorner<6, 6>();
+  for (SkeletonPlane& sp : r->skeleton_planes) {
+    sp.plane = TransformPlane(r->T_world_map, sp.plane);
+    sp.centroid = r->T_world_map * sp.centroid;
+    sp.scatter = R * sp.scatter * R.transpose();
+  }
+}
+
+// The IMU did not measure the motion during a gap: integration across it assumed the samples on
+// either side held throughout. Allow a constant unmeasured acceleration and turn rate for its
+// length, so the registration of the next scan can move the pose as far as that explains.
+void LioPpf::Impl::WidenForGap(double gap_s) {
+  const double rot = config.gap_gyro_std * gap_s;
+  const double vel = config.gap_acc_std * gap_s;
+  const double pos = 0.5 * config.gap_acc_std * gap_s * gap_s;
+  state.P.block<3, 3>(kRot, kRot).diagonal().array() += rot * rot;
+  state.P.block<3, 3>(kVel, kVel).diagonal().array() += vel * vel;
+  state.P.block<3, 3>(kPos, kPos).diagonal().array() += pos * pos;
+}
+
+void LioPpf::Impl::InsertScattered(const ScanFrame& f, const Eigen::Isometry3d& T_world_lidar,
+                                   ScanResult* r) {
+  const Eigen::Isometry3f T = T_world_lidar.cast<float>();
+  for (size_t i = 0; i < f.points_lidar.size(); ++i) {
+    if (f.labels[i] != PointLabel::kScattered) continue;
+    map.Insert(T * f.points_lidar[i]);
+    ++r->map_inserted;
+  }
+}
+
+}  // namespace ppf

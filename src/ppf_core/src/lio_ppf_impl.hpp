@@ -3,7 +3,7 @@
 // One struct, split by what a reader looks for:
 //   lio_ppf.cpp            facade, input (AddImu, AddScan), the queue (Process), resets and the
 //                          IMU-mode decision
-//   lio_ppf_process.cpp    one scan's path (ProcessOne) and the result
+//   lio_ppf_process.cpp    one scan's path (ProcessOne and its stages) and the result
 //   lio_ppf_init.cpp       the filter's start: static IMU initialization and the moving start
 //   lio_ppf_lidar_only.cpp prediction without the IMU's translation: constant-velocity and gyro
 //                          prediction and the guesses of the coarse alignment (LiDAR-only mode
@@ -65,6 +65,17 @@ struct LioPpf::Impl {
 
   // lio_ppf_process.cpp: one scan.
   ScanResult ProcessOne(QueuedScan& q);
+  bool AcceptScan(const DecodedScan& scan, bool lidar, ScanResult* r);
+  void Preprocess(const QueuedScan& q, std::vector<TimedPoint>* pts, ScanResult* r);
+  double Propagate(const DecodedScan& scan, bool lidar, PoseTrace* trace, ScanResult* r);
+  void Deskew(const DecodedScan& scan, const std::vector<TimedPoint>& pts, const PoseTrace& trace,
+              double t_end);
+  void StartMap(bool lidar, double t_end, ScanResult* r);
+  void SplitScan(ScanResult* r);
+  IekfReport Register(double t_end, Eigen::Isometry3d* T_world_lidar_out, ScanResult* r);
+  void SetUpdateStatus(const IekfReport& rep, bool lidar, ScanResult* r) const;
+  void FinishLidarOnly(const CoarseAlignment& coarse, double t_end, ScanResult* r);
+  void ExtendMap(const IekfReport& rep, const Eigen::Isometry3d& T_world_lidar, ScanResult* r);
   Eigen::Isometry3d WorldFromMap() const;
   void FillState(ScanResult* r) const;
   void WidenForGap(double gap_s);

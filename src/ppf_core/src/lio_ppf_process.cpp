@@ -1,6 +1,6 @@
-// One scan's path (ProcessOne): preprocess, propagate and de-skew, then start the map (first
-// scan) or register the scan (coarse alignment when LiDAR-only, PPF split, iterated EKF), extend
-// the map, and fill the result in the gravity-aligned world frame.
+// One scan's path (ProcessOne): accept, preprocess, propagate and de-skew, then start the map
+// (first scan) or register the scan (coarse alignment when LiDAR-only, PPF split, iterated EKF),
+// judge the update, extend the map, and fill the result in the gravity-aligned world frame.
 #include <algorithm>
 #include <sstream>
 #include <vector>
@@ -20,85 +20,22 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   r.input_points = scan.input_points;
   r.dropped_nan = scan.dropped_nan;
   r.map_size = map.size();
-  if (!initialized && !moving_init) {
-    r.status = Status::kInitializing;
-    r.reason = init.reason().empty() ? "waiting for IMU data" : init.reason();
-    return r;
-  }
   // The moving-start initialization registers its scans as LiDAR-only does.
   const bool lidar = lidar_only || moving_init;
-  if (!lidar && scan.t_end <= state.stamp_s && !map_initialized) {
-    r.status = Status::kInitializing;
-    r.reason = "scan ends before IMU initialization finished";
-    return r;
-  }
-  if (scan.t_end < last_scan_end - 1e-6) {
-    std::ostringstream os;
-    os << "scan time went backwards by " << last_scan_end - scan.t_end << " s";
-    ResetFilter("");
-    Log(LogLevel::kWarn, "reset: " + os.str());
-    r.status = Status::kReset;
-    r.reason = os.str();
-    return r;
-  }
+  if (!AcceptScan(scan, lidar, &r)) return r;
   Append(&r.reason, scan.note);
   if (config.mode == Mode::kPpf && !splitter) {
     Append(&r.reason, "ppf mode requested but no ScanSplitter installed: running kNN");
   }
 
-  // Preprocess: stride and range filter plus the voxel grid, on the raw scan; each kept point
-  // carries the mean time of its voxel (preprocess.hpp: why this comes before de-skew).
-  auto t0 = Clock::now();
   std::vector<TimedPoint> pts;
-  PreprocessOptions pre;
-  pre.min_range = config.min_range;
-  pre.max_range = config.max_range;
-  pre.point_stride = config.point_stride;
-  pre.voxel_size = config.scan_voxel_size;
-  const PreprocessStats pre_stats = downsampler.Run(scan.points, scan.t_begin, pre, &pts);
-  r.valid_points = pre_stats.valid_points;
-  r.downsampled_points = pre_stats.downsampled_points;
-  r.timings.preprocess = q.decode_ms;
-  r.timings.downsample = MsSince(t0);
+  Preprocess(q, &pts, &r);
 
   // Propagate to the scan end and de-skew the downsampled points.
-  t0 = Clock::now();
-  if (lidar && !map_initialized) StartLidarOnly(scan.t_end);
-  const double t_end = std::max(scan.t_end, state.stamp_s);
+  auto t0 = Clock::now();
   PoseTrace trace;
-  if (lidar) {
-    PredictConstantVelocity(t_end, &trace);
-    if (moving_init && motion.has_pose()) PredictGyro(t_end, &trace);
-  } else {
-    std::vector<ImuSample> samples(imu.begin(), imu.end());
-    PropagateImu(samples, t_end, acc_scale, config.noise, &state, &trace);
-    for (const ImuSample& s : samples) {
-      if (s.stamp_s > t_end && s.stamp_s != samples.front().stamp_s) break;
-      gyro_at_scan_end = s.angular_velocity;
-    }
-  }
-  if (!lidar && t_end - last_imu_stamp > 0.02) {
-    std::ostringstream os;
-    os << "IMU extrapolated by " << t_end - last_imu_stamp << " s (last sample held)";
-    Append(&r.reason, os.str());
-  }
-  while (!bridged_gaps.empty() && bridged_gaps.front().begin_s < t_end) {
-    WidenForGap(bridged_gaps.front().length_s);
-    r.imu_gap_s = std::max(r.imu_gap_s, bridged_gaps.front().length_s);
-    bridged_gaps.pop_front();
-  }
-  if (r.imu_gap_s > 0.0) {
-    std::ostringstream os;
-    os << "IMU gap of " << r.imu_gap_s << " s bridged";
-    Append(&r.reason, os.str());
-  }
-  frame = ScanFrame();
-  if (scan.has_time_field || scan.times_estimated) {
-    DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &frame.points_lidar, config.num_threads);
-  } else {
-    frame.points_lidar.reserve(pts.size());
-    for (const TimedPoint& tp : pts) frame.points_lidar.push_back(tp.p);
-  }
+  const double t_end = Propagate(scan, lidar, &trace, &r);
+  Deskew(scan, pts, trace, t_end);
   r.timings.deskew = MsSince(t0);
   last_scan_end = t_end;
   r.stamp_s = t_end;
@@ -114,21 +51,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   frame.residual_max_range = config.iekf.residual_max_range;
 
   if (!map_initialized) {
-    t0 = Clock::now();
-    InsertScattered(frame, frame.T_world_lidar_predicted, &r);
-    map_initialized = !frame.points_lidar.empty();
-    map_init_stamp_s = t_end;
-    if (lidar && map_initialized) motion.Update(state.T_world_imu(), t_end);
-    if (lidar_only && map_initialized) {
-      Append(&r.reason, "LiDAR-only (no IMU): world frame = this scan's LiDAR frame");
-    }
-    r.timings.map_insert = MsSince(t0);
-    r.status = map_initialized ? Status::kOk : Status::kInitializing;
-    Append(&r.reason, map_initialized ? "map initialized" : "empty first scan");
-    r.pose_valid = true;
-    r.scattered_points = frame.points_lidar.size();
-    FillState(&r);
-    r.map_size = map.size();
+    StartMap(lidar, t_end, &r);
     r.timings.total = MsSince(t_total) + q.decode_ms;
     return r;
   }
@@ -139,22 +62,149 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
     coarse = AlignGuesses(t_end);
     r.timings.guesses = MsSince(t0);
   }
+  SplitScan(&r);
+  Eigen::Isometry3d T_world_lidar;
+  const IekfReport rep = Register(t_end, &T_world_lidar, &r);
+  SetUpdateStatus(rep, lidar, &r);
+  if (lidar) FinishLidarOnly(coarse, t_end, &r);
+  r.pose_valid = true;
 
+  ExtendMap(rep, T_world_lidar, &r);
+  r.map_size = map.size();
+  FillState(&r);
+  r.timings.total = MsSince(t_total) + q.decode_ms;
+  return r;
+}
+
+// False for a scan the filter cannot take yet, or one that goes back in time (it resets the
+// filter); r is then the scan's whole result.
+bool LioPpf::Impl::AcceptScan(const DecodedScan& scan, bool lidar, ScanResult* r) {
+  if (!initialized && !moving_init) {
+    r->status = Status::kInitializing;
+    r->reason = init.reason().empty() ? "waiting for IMU data" : init.reason();
+    return false;
+  }
+  if (!lidar && scan.t_end <= state.stamp_s && !map_initialized) {
+    r->status = Status::kInitializing;
+    r->reason = "scan ends before IMU initialization finished";
+    return false;
+  }
+  if (scan.t_end < last_scan_end - 1e-6) {
+    std::ostringstream os;
+    os << "scan time went backwards by " << last_scan_end - scan.t_end << " s";
+    ResetFilter("");
+    Log(LogLevel::kWarn, "reset: " + os.str());
+    r->status = Status::kReset;
+    r->reason = os.str();
+    return false;
+  }
+  return true;
+}
+
+// Preprocess: stride and range filter plus the voxel grid, on the raw scan; each kept point
+// carries the mean time of its voxel (preprocess.hpp: why this comes before de-skew).
+void LioPpf::Impl::Preprocess(const QueuedScan& q, std::vector<TimedPoint>* pts, ScanResult* r) {
+  const DecodedScan& scan = q.scan;
+  auto t0 = Clock::now();
+  PreprocessOptions pre;
+  pre.min_range = config.min_range;
+  pre.max_range = config.max_range;
+  pre.point_stride = config.point_stride;
+  pre.voxel_size = config.scan_voxel_size;
+  const PreprocessStats pre_stats = downsampler.Run(scan.points, scan.t_begin, pre, pts);
+  r->valid_points = pre_stats.valid_points;
+  r->downsampled_points = pre_stats.downsampled_points;
+  r->timings.preprocess = q.decode_ms;
+  r->timings.downsample = MsSince(t0);
+}
+
+// The state at the scan end (t_end, returned) and the pose trace over the scan, from the IMU or
+// from the LiDAR-only prediction; IMU gaps bridged before t_end widen the covariance.
+double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* trace,
+                               ScanResult* r) {
+  if (lidar && !map_initialized) StartLidarOnly(scan.t_end);
+  const double t_end = std::max(scan.t_end, state.stamp_s);
+  if (lidar) {
+    PredictConstantVelocity(t_end, trace);
+    if (moving_init && motion.has_pose()) PredictGyro(t_end, trace);
+  } else {
+    std::vector<ImuSample> samples(imu.begin(), imu.end());
+    PropagateImu(samples, t_end, acc_scale, config.noise, &state, trace);
+    for (const ImuSample& s : samples) {
+      if (s.stamp_s > t_end && s.stamp_s != samples.front().stamp_s) break;
+      gyro_at_scan_end = s.angular_velocity;
+    }
+  }
+  if (!lidar && t_end - last_imu_stamp > 0.02) {
+    std::ostringstream os;
+    os << "IMU extrapolated by " << t_end - last_imu_stamp << " s (last sample held)";
+    Append(&r->reason, os.str());
+  }
+  while (!bridged_gaps.empty() && bridged_gaps.front().begin_s < t_end) {
+    WidenForGap(bridged_gaps.front().length_s);
+    r->imu_gap_s = std::max(r->imu_gap_s, bridged_gaps.front().length_s);
+    bridged_gaps.pop_front();
+  }
+  if (r->imu_gap_s > 0.0) {
+    std::ostringstream os;
+    os << "IMU gap of " << r->imu_gap_s << " s bridged";
+    Append(&r->reason, os.str());
+  }
+  return t_end;
+}
+
+void LioPpf::Impl::Deskew(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
+                          const PoseTrace& trace, double t_end) {
+  frame = ScanFrame();
+  if (scan.has_time_field || scan.times_estimated) {
+    DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &frame.points_lidar, config.num_threads);
+  } else {
+    frame.points_lidar.reserve(pts.size());
+    for (const TimedPoint& tp : pts) frame.points_lidar.push_back(tp.p);
+  }
+}
+
+// The map's first scan, inserted at the predicted pose: it defines the map frame.
+void LioPpf::Impl::StartMap(bool lidar, double t_end, ScanResult* r) {
+  const auto t0 = Clock::now();
+  InsertScattered(frame, frame.T_world_lidar_predicted, r);
+  map_initialized = !frame.points_lidar.empty();
+  map_init_stamp_s = t_end;
+  if (lidar && map_initialized) motion.Update(state.T_world_imu(), t_end);
+  if (lidar_only && map_initialized) {
+    Append(&r->reason, "LiDAR-only (no IMU): world frame = this scan's LiDAR frame");
+  }
+  r->timings.map_insert = MsSince(t0);
+  r->status = map_initialized ? Status::kOk : Status::kInitializing;
+  Append(&r->reason, map_initialized ? "map initialized" : "empty first scan");
+  r->pose_valid = true;
+  r->scattered_points = frame.points_lidar.size();
+  FillState(r);
+  r->map_size = map.size();
+}
+
+// The split into skeleton and scattered points (kPpf) and the count of each label.
+void LioPpf::Impl::SplitScan(ScanResult* r) {
   if (config.mode == Mode::kPpf && splitter) {
-    t0 = Clock::now();
+    const auto t0 = Clock::now();
     splitter->Split(&frame);
     frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
-    r.timings.ppf = MsSince(t0);
+    r->timings.ppf = MsSince(t0);
   }
   for (PointLabel l : frame.labels) {
     if (l == PointLabel::kSkeleton)
-      ++r.skeleton_points;
+      ++r->skeleton_points;
     else if (l == PointLabel::kScattered)
-      ++r.scattered_points;
+      ++r->scattered_points;
     else
-      ++r.discarded_points;
+      ++r->discarded_points;
   }
+}
 
+// The iterated EKF with this scan's residual providers. The updated pose (T_world_lidar_out) is
+// the one at which the splitter and the providers close the scan.
+IekfReport LioPpf::Impl::Register(double t_end, Eigen::Isometry3d* T_world_lidar_out,
+                                  ScanResult* r) {
   std::vector<ResidualProvider*> providers;
   providers.push_back(knn.get());
   if (config.mode == Mode::kPpf) {
@@ -168,70 +218,75 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   IekfOptions iekf = config.iekf;
   if (t_end - map_init_stamp_s < iekf.refined_gate_after_s) iekf.refined_gate = 0.0;
   const IekfReport rep = IekfUpdate(iekf, config.T_imu_lidar, providers, &state);
-  r.timings.residuals = rep.residuals_ms;
-  r.timings.update = rep.update_ms;
-  r.iterations = rep.iterations;
-  r.converged = rep.converged;
-  r.eig_rotation = rep.eig_rotation;
-  r.eig_translation = rep.eig_translation;
+  r->timings.residuals = rep.residuals_ms;
+  r->timings.update = rep.update_ms;
+  r->iterations = rep.iterations;
+  r->converged = rep.converged;
+  r->eig_rotation = rep.eig_rotation;
+  r->eig_translation = rep.eig_translation;
   for (size_t i = 0; i < rep.rows_per_provider.size(); ++i) {
     if (i == 0)
-      r.knn_residuals = static_cast<size_t>(rep.rows_per_provider[i]);
+      r->knn_residuals = static_cast<size_t>(rep.rows_per_provider[i]);
     else
-      r.skeleton_residuals += static_cast<size_t>(rep.rows_per_provider[i]);
+      r->skeleton_residuals += static_cast<size_t>(rep.rows_per_provider[i]);
   }
   const Eigen::Isometry3d T_world_lidar = state.T_world_imu() * config.T_imu_lidar;
   if (config.mode == Mode::kPpf && splitter) {
-    t0 = Clock::now();
+    const auto t0 = Clock::now();
     splitter->Finish(frame, T_world_lidar);
     if (ppf_tracker && splitter == ppf_tracker) {
-      r.skeleton_planes = ppf_tracker->window().planes();  // map frame until FillState
-      r.skeleton_patches = ppf_tracker->patch_map().num_patches();
+      r->skeleton_planes = ppf_tracker->window().planes();  // map frame until FillState
+      r->skeleton_patches = ppf_tracker->patch_map().num_patches();
     }
-    r.timings.ppf += MsSince(t0);
+    r->timings.ppf += MsSince(t0);
   }
   for (ResidualProvider* p : providers) p->EndScan(T_world_lidar);
+  *T_world_lidar_out = T_world_lidar;
+  return rep;
+}
 
+void LioPpf::Impl::SetUpdateStatus(const IekfReport& rep, bool lidar, ScanResult* r) const {
   if (rep.skipped) {
-    r.status = Status::kDegenerate;
+    r->status = Status::kDegenerate;
     std::ostringstream os;
     os << "too few residuals (" << rep.num_rows << " < " << config.iekf.min_rows
        << "): " << (lidar ? "motion-model prediction only" : "IMU prediction only");
-    Append(&r.reason, os.str());
+    Append(&r->reason, os.str());
   } else if (rep.degenerate) {
-    r.status = Status::kDegenerate;
-    Append(&r.reason, "degenerate: " + rep.degenerate_reason);
+    r->status = Status::kDegenerate;
+    Append(&r->reason, "degenerate: " + rep.degenerate_reason);
   } else {
-    r.status = Status::kOk;
+    r->status = Status::kOk;
   }
-  if (lidar) {
-    r.fit = coarse.fit;
-    r.motion_guess = coarse.name;
-    r.guesses_tried = coarse.tried;
-    if (coarse.fit < config.lidar_only.min_fit) {
-      std::ostringstream os;
-      os.precision(2);
-      os << "LiDAR-only: poor fit " << coarse.fit << " < " << config.lidar_only.min_fit << " after "
-         << coarse.tried << " guesses (best " << coarse.name << "): the pose may be off";
-      r.status = Status::kDegenerate;
-      Append(&r.reason, os.str());
-    }
-    motion.Update(state.T_world_imu(), t_end);
-  }
-  r.pose_valid = true;
+}
 
-  t0 = Clock::now();
+// LiDAR-only: the coarse alignment's verdict joins the result, and the registered pose moves the
+// constant-velocity model on.
+void LioPpf::Impl::FinishLidarOnly(const CoarseAlignment& coarse, double t_end, ScanResult* r) {
+  r->fit = coarse.fit;
+  r->motion_guess = coarse.name;
+  r->guesses_tried = coarse.tried;
+  if (coarse.fit < config.lidar_only.min_fit) {
+    std::ostringstream os;
+    os.precision(2);
+    os << "LiDAR-only: poor fit " << coarse.fit << " < " << config.lidar_only.min_fit << " after "
+       << coarse.tried << " guesses (best " << coarse.name << "): the pose may be off";
+    r->status = Status::kDegenerate;
+    Append(&r->reason, os.str());
+  }
+  motion.Update(state.T_world_imu(), t_end);
+}
+
+void LioPpf::Impl::ExtendMap(const IekfReport& rep, const Eigen::Isometry3d& T_world_lidar,
+                             ScanResult* r) {
+  const auto t0 = Clock::now();
   // A scan that could not be registered is not trusted to extend the map.
-  if (!rep.skipped) InsertScattered(frame, T_world_lidar, &r);
+  if (!rep.skipped) InsertScattered(frame, T_world_lidar, r);
   if (config.map_radius > 0.0 && ++scans_since_prune >= 10) {
     map.RemoveFarFrom(state.p_world_imu, config.map_radius);
     scans_since_prune = 0;
   }
-  r.timings.map_insert = MsSince(t0);
-  r.map_size = map.size();
-  FillState(&r);
-  r.timings.total = MsSince(t_total) + q.decode_ms;
-  return r;
+  r->timings.map_insert = MsSince(t0);
 }
 
 // Rotation of the map frame into the frame whose -z is the estimated gravity: the smallest one,

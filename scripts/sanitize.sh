@@ -87,6 +87,11 @@ case "$kind" in
     source_setup install/setup.bash
     # second_deadlock_stack: lock-order inversions (issue 12's recorder deadlock) show both sides.
     export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$SAN/tsan.supp:print_suppressions=0"
+    # LLVM's libomp loads its TSan tool (libarcher.so, in Debian's llvm-14) into a TSan process by
+    # itself; Archer then reported a "double lock" of its own mutex inside the core's OpenMP loop
+    # (ScoreFit, the LiDAR-only hypothesis scoring every node now runs at start-up). The OpenMP
+    # runtime is not TSan's target here (tsan.supp, libomp): no tool.
+    export OMP_TOOL=disabled
     build build-tsan install-tsan "$SAN/tsan.cmake" --packages-select ppf_dds_node || exit 1
     clang -O1 -shared -fPIC -o build-tsan/libppf_tsan_clocklock_shim.so "$SAN/tsan_clocklock_shim.c" || exit 1
     export LD_PRELOAD="$ROOT/build-tsan/libppf_tsan_clocklock_shim.so"

@@ -43,6 +43,19 @@ inline const char* const kProfile = "ppf_test_loopback";
 // UDP only: for tests that SIGKILL a participant (see the profile's comment).
 inline const char* const kProfileUdp = "ppf_test_loopback_udp";
 
+// This test binary (and the tools it starts, scripts/sanitize.sh) built with ThreadSanitizer.
+#if defined(__SANITIZE_THREAD__)
+inline constexpr bool kUnderTsan = true;
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+inline constexpr bool kUnderTsan = true;
+#else
+inline constexpr bool kUnderTsan = false;
+#endif
+#else
+inline constexpr bool kUnderTsan = false;
+#endif
+
 // A fresh directory /tmp/<prefix>_XXXXXX (mkdtemp); "/tmp" if it cannot be made.
 inline std::string TempDir(const std::string& prefix) {
   std::string tmpl = "/tmp/" + prefix + "_XXXXXX";

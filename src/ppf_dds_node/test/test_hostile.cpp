@@ -19,21 +19,10 @@
 #include "tool_paths.hpp"
 
 using ppf::test::CountLinesWith;
+using ppf::test::kUnderTsan;
 using ppf::test::SummaryField;
 
 namespace {
-
-#if defined(__SANITIZE_THREAD__)
-constexpr bool kUnderTsan = true;
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer)
-constexpr bool kUnderTsan = true;
-#else
-constexpr bool kUnderTsan = false;
-#endif
-#else
-constexpr bool kUnderTsan = false;
-#endif
 
 std::string SimOrSkipReason(std::string* sim) {
   if (std::string(PPF_CYCLONE_PEER).empty()) {

@@ -25,6 +25,9 @@ cd "$ROOT"
 # python3-rosbag and python3-sensor-msgs (Debian's ROS 1 Python, for /usr/bin/python3) are the
 # independent ROS 1 bag writer of ppf_bag's ROS 1 reader tests.
 # python3-matplotlib (for /usr/bin/python3) draws the plots of scripts/ppf_report.py.
+# docker-compose: its Compose Specification schema checks docker/compose.yaml in CI
+# (test/system/test_docker_files.py; `docker compose` v2 is not packaged for Debian 12) and
+# scripts/container_check.sh runs the compose file with it against podman.
 PPF_DEBIAN_PACKAGES=(
   build-essential cmake pkg-config git ca-certificates
   colcon python3-colcon-cmake python3-colcon-package-selection python3-colcon-test-result
@@ -38,6 +41,7 @@ PPF_DEBIAN_PACKAGES=(
   python3-yaml nodejs npm
   python3-rosbag python3-sensor-msgs python3-matplotlib
   clang libclang-rt-14-dev
+  docker-compose
 )
 
 deps=1

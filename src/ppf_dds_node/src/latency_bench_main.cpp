@@ -84,9 +84,7 @@ double Field(const std::string& line, const std::string& key) {
   return std::atof(line.c_str() + p + key.size() + 2);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+struct BenchOptions {
   int scans = 100, rings = 64, columns = 2048;
   double rate_hz = 10.0;
   std::string node_exe = ExeDir() + "/ppf_node";
@@ -95,29 +93,33 @@ int main(int argc, char** argv) {
   int domain = 1 + static_cast<int>(getpid() % 200);
   std::string omp_policy;  // "" = the node's own default (core.omp_wait_policy: passive)
   int node_nice = 0;
+};
+
+// False (after the usage text) on an argument it does not know.
+bool ParseArgs(int argc, char** argv, BenchOptions* o) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
     if (a == "--scans")
-      scans = std::atoi(next().c_str());
+      o->scans = std::atoi(next().c_str());
     else if (a == "--rate")
-      rate_hz = std::atof(next().c_str());
+      o->rate_hz = std::atof(next().c_str());
     else if (a == "--rings")
-      rings = std::atoi(next().c_str());
+      o->rings = std::atoi(next().c_str());
     else if (a == "--columns")
-      columns = std::atoi(next().c_str());
+      o->columns = std::atoi(next().c_str());
     else if (a == "--node")
-      node_exe = next();
+      o->node_exe = next();
     else if (a == "--profiles")
-      profiles = next();
+      o->profiles = next();
     else if (a == "--profile")
-      profile = next();
+      o->profile = next();
     else if (a == "--domain")
-      domain = std::atoi(next().c_str());
+      o->domain = std::atoi(next().c_str());
     else if (a == "--omp-wait-policy")
-      omp_policy = next();
+      o->omp_policy = next();
     else if (a == "--node-nice")
-      node_nice = std::atoi(next().c_str());
+      o->node_nice = std::atoi(next().c_str());
     else {
       std::fprintf(stderr,
                    "usage: ppf_latency_bench [--scans N=100] [--rate HZ=10] [--rings 64] "
@@ -126,38 +128,145 @@ int main(int argc, char** argv) {
                    "  --omp-wait-policy P  OMP_WAIT_POLICY for the node (default: the node's\n"
                    "                       core.omp_wait_policy, passive)\n"
                    "  --node-nice N  run the node under nice -n N (negative: higher priority)\n");
-      return 2;
+      return false;
     }
   }
+  return true;
+}
 
-  // Node config: same profile, unique domain, quiet diagnostics.
-  const std::string cfg = "/tmp/ppf_latency_bench_" + std::to_string(getpid()) + ".yaml";
+// Starts the node on config `cfg` (written here: same profile, unique domain, quiet
+// diagnostics) and waits until it is ready. False (logged) if it does not come up.
+bool StartNode(const BenchOptions& o, const std::string& cfg, ppf::dds::ChildProcess* node) {
   {
     std::ofstream out(cfg);
-    out << "dds: {domain_id: " << domain << ", profiles_file: \"" << profiles
-        << "\", profile_name: \"" << profile << "\"}\n"
+    out << "dds: {domain_id: " << o.domain << ", profiles_file: \"" << o.profiles
+        << "\", profile_name: \"" << o.profile << "\"}\n"
         << "queues: {scan_capacity: 2}\n";
   }
-  ppf::dds::ChildProcess node;
   std::vector<std::string> node_env;
-  if (!omp_policy.empty()) node_env.push_back("OMP_WAIT_POLICY=" + omp_policy);
-  std::vector<std::string> node_argv = {node_exe, "--config", cfg};
-  if (node_nice != 0) {
-    node_argv.insert(node_argv.begin(), {"/usr/bin/nice", "-n", std::to_string(node_nice)});
+  if (!o.omp_policy.empty()) node_env.push_back("OMP_WAIT_POLICY=" + o.omp_policy);
+  std::vector<std::string> node_argv = {o.node_exe, "--config", cfg};
+  if (o.node_nice != 0) {
+    node_argv.insert(node_argv.begin(), {"/usr/bin/nice", "-n", std::to_string(o.node_nice)});
   }
-  if (!node.Start(node_argv, node_env,
-                  "/tmp/ppf_latency_bench_node_" + std::to_string(getpid()) + ".log")) {
-    std::fprintf(stderr, "cannot start %s\n", node_exe.c_str());
-    return 1;
+  if (!node->Start(node_argv, node_env,
+                   "/tmp/ppf_latency_bench_node_" + std::to_string(getpid()) + ".log")) {
+    std::fprintf(stderr, "cannot start %s\n", o.node_exe.c_str());
+    return false;
   }
   std::string line;
-  if (!node.WaitForLine("PPF_NODE_READY", &line, 20s)) {
+  if (!node->WaitForLine("PPF_NODE_READY", &line, 20s)) {
     std::fprintf(stderr, "ppf_node did not come up (see /tmp/ppf_latency_bench_node_%d.log)\n",
                  getpid());
-    return 1;
+    return false;
   }
+  return true;
+}
 
-  ppf::dds::ParticipantOptions popt{domain, profiles, profile, "ppf_latency_bench"};
+// Publishes the static room in real time from an arbitrary epoch: IMU at 200 Hz, 1.5 s of rest,
+// then `scans` scans at rate_hz. Returns when each scan (by its end stamp) was written.
+std::map<int64_t, Clock::time_point> Publish(const BenchOptions& o, fdds::DataWriter* imu_w,
+                                             fdds::DataWriter* cloud_w,
+                                             sensor_msgs::msg::PointCloud2* cloud) {
+  const int64_t t0_ns = 1700000000LL * 1000000000LL;
+  const int64_t imu_dt = 5000000;  // 200 Hz
+  const int64_t scan_dt = static_cast<int64_t>(1e9 / o.rate_hz);
+  const int64_t warmup_ns = 1500000000LL;
+  const auto wall0 = Clock::now();
+  std::map<int64_t, Clock::time_point> written;  // scan end stamp -> write time
+  uint64_t imu_seq = 0;
+  int64_t imu_next = t0_ns;
+  const int64_t end_ns = t0_ns + warmup_ns + o.scans * scan_dt;
+  int64_t scan_start = t0_ns + warmup_ns;
+  while (imu_next <= end_ns || scan_start + scan_dt <= end_ns) {
+    // Next event in simulated time: an IMU sample or the end of the current scan.
+    const int64_t scan_end = scan_start + scan_dt;
+    const bool imu_first = imu_next <= scan_end;
+    const int64_t event = imu_first ? imu_next : scan_end;
+    std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(event - t0_ns));
+    if (imu_first) {
+      sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(imu_next, imu_seq++);
+      imu_w->write(&imu);
+      imu_next += imu_dt;
+    } else {
+      cloud->header().stamp(ppf::msgs::TimeFromNanoseconds(scan_start));
+      written[scan_end] = Clock::now();  // before write: with SHM the node may get it first
+      cloud_w->write(cloud);
+      scan_start = scan_end;
+    }
+  }
+  return written;
+}
+
+// End-to-end: scan written here -> its odometry received here. The pose refers to the scan end
+// (ScanResult::stamp_s), which is the last point's time: match within 1 ms of the nominal end.
+ppf::dds::LatencyStats EndToEnd(OdomListener& odom,
+                                const std::map<int64_t, Clock::time_point>& written) {
+  ppf::dds::LatencyStats e2e;
+  std::lock_guard<std::mutex> lock(odom.mutex);
+  for (const auto& [stamp, rx] : odom.received) {
+    auto it = written.lower_bound(stamp - 2000000);
+    if (it != written.end() && std::llabs(it->first - stamp) < 2000000) {
+      e2e.Add(std::chrono::duration<double, std::milli>(rx - it->second).count());
+    }
+  }
+  return e2e;
+}
+
+void PrintTable(const BenchOptions& o, const sensor_msgs::msg::PointCloud2& cloud, double cloud_mb,
+                const std::string& summary, const ppf::dds::LatencyStats& e2e) {
+  std::printf(
+      "ppf_latency_bench: %d scans x %u points (%.1f MB, HDL-64 size) at %.0f Hz, "
+      "profile %s, OMP_WAIT_POLICY %s, node nice %d\n\n",
+      o.scans, cloud.width(), cloud_mb, o.rate_hz, o.profile.c_str(),
+      !o.omp_policy.empty()            ? o.omp_policy.c_str()
+      : std::getenv("OMP_WAIT_POLICY") ? std::getenv("OMP_WAIT_POLICY")
+                                       : "passive (node default)",
+      o.node_nice);
+  std::printf("| %-52s | %8s | %8s | %8s |\n", "metric (ms)", "p50", "p99", "max");
+  std::printf("|%s|%s|%s|%s|\n", std::string(54, '-').c_str(), std::string(10, '-').c_str(),
+              std::string(10, '-').c_str(), std::string(10, '-').c_str());
+  std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n", "node overhead (latency - core - waits)",
+              Field(summary, "overhead_p50_ms"), Field(summary, "overhead_p99_ms"),
+              Field(summary, "overhead_max_ms"));
+  std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n",
+              "node latency (DDS receive -> odometry published)", Field(summary, "latency_p50_ms"),
+              Field(summary, "latency_p99_ms"), Field(summary, "latency_max_ms"));
+  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "core time (decode + pipeline)",
+              Field(summary, "core_p50_ms"), Field(summary, "core_p99_ms"), "");
+  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "  of which: listener take + CDR decode",
+              Field(summary, "decode_p50_ms"), Field(summary, "decode_p99_ms"), "");
+  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "  of which: scan queue -> executor",
+              Field(summary, "queue_p50_ms"), Field(summary, "queue_p99_ms"), "");
+  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n",
+              "  of which: conversion + publishing all outputs", Field(summary, "publish_p50_ms"),
+              Field(summary, "publish_p99_ms"), "");
+  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "scan queued behind the core (older scans)",
+              Field(summary, "behind_core_p50_ms"), Field(summary, "behind_core_p99_ms"), "");
+  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "scan waiting in core for IMU coverage",
+              Field(summary, "imu_wait_p50_ms"), Field(summary, "imu_wait_p99_ms"), "");
+  std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n",
+              "end to end (bench write -> odometry received)", e2e.Percentile(50),
+              e2e.Percentile(99), e2e.Max());
+  std::printf(
+      "\nscans written %d, received %.0f, processed %.0f, odometry %.0f, dropped %.0f; "
+      "odometry matched here %zu\n",
+      o.scans, Field(summary, "scans_received"), Field(summary, "scans_processed"),
+      Field(summary, "odometry_published"), Field(summary, "scans_dropped"), e2e.count());
+  const double p99 = Field(summary, "overhead_p99_ms");
+  std::printf("target node overhead p99 < 2 ms: %s\n", p99 < 2.0 ? "met" : "NOT met");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  BenchOptions o;
+  if (!ParseArgs(argc, argv, &o)) return 2;
+  const std::string cfg = "/tmp/ppf_latency_bench_" + std::to_string(getpid()) + ".yaml";
+  ppf::dds::ChildProcess node;
+  if (!StartNode(o, cfg, &node)) return 1;
+
+  ppf::dds::ParticipantOptions popt{o.domain, o.profiles, o.profile, "ppf_latency_bench"};
   std::string error;
   fdds::DomainParticipant* participant = ppf::dds::CreateParticipant(popt, &error);
   if (!participant) {
@@ -194,41 +303,13 @@ int main(int argc, char** argv) {
   }
 
   ppf::dds::SyntheticLidar lidar;
-  lidar.rings = rings;
-  lidar.columns = columns;
+  lidar.rings = o.rings;
+  lidar.columns = o.columns;
   sensor_msgs::msg::PointCloud2 cloud = ppf::dds::MakeRoomScan(lidar, 0);
   const double cloud_mb = static_cast<double>(cloud.data().size()) / (1 << 20);
   std::fprintf(stderr, "ppf_latency_bench: %d scans of %u points (%.1f MB) at %.1f Hz, domain %d\n",
-               scans, cloud.width(), cloud_mb, rate_hz, domain);
-
-  // Simulated time starts at an arbitrary epoch; IMU at 200 Hz, 1.5 s of rest before scans.
-  const int64_t t0_ns = 1700000000LL * 1000000000LL;
-  const int64_t imu_dt = 5000000;  // 200 Hz
-  const int64_t scan_dt = static_cast<int64_t>(1e9 / rate_hz);
-  const int64_t warmup_ns = 1500000000LL;
-  const auto wall0 = Clock::now();
-  std::map<int64_t, Clock::time_point> written;  // scan end stamp -> write time
-  uint64_t imu_seq = 0;
-  int64_t imu_next = t0_ns;
-  const int64_t end_ns = t0_ns + warmup_ns + scans * scan_dt;
-  int64_t scan_start = t0_ns + warmup_ns;
-  while (imu_next <= end_ns || scan_start + scan_dt <= end_ns) {
-    // Next event in simulated time: an IMU sample or the end of the current scan.
-    const int64_t scan_end = scan_start + scan_dt;
-    const bool imu_first = imu_next <= scan_end;
-    const int64_t event = imu_first ? imu_next : scan_end;
-    std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(event - t0_ns));
-    if (imu_first) {
-      sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(imu_next, imu_seq++);
-      imu_w->write(&imu);
-      imu_next += imu_dt;
-    } else {
-      cloud.header().stamp(ppf::msgs::TimeFromNanoseconds(scan_start));
-      written[scan_end] = Clock::now();  // before write: with SHM the node may get it first
-      cloud_w->write(&cloud);
-      scan_start = scan_end;
-    }
-  }
+               o.scans, cloud.width(), cloud_mb, o.rate_hz, o.domain);
+  const auto written = Publish(o, imu_w, cloud_w, &cloud);
   std::this_thread::sleep_for(1500ms);  // let the node finish the last scans
   node.Signal(SIGINT);
   std::string summary;
@@ -236,64 +317,13 @@ int main(int argc, char** argv) {
   const int status = node.Wait(10s);
   std::remove(cfg.c_str());
 
-  // End-to-end: scan written here -> its odometry received here. The pose refers to the scan end
-  // (ScanResult::stamp_s), which is the last point's time: match within 1 ms of the nominal end.
-  ppf::dds::LatencyStats e2e;
-  {
-    std::lock_guard<std::mutex> lock(odom.mutex);
-    for (const auto& [stamp, rx] : odom.received) {
-      auto it = written.lower_bound(stamp - 2000000);
-      if (it != written.end() && std::llabs(it->first - stamp) < 2000000) {
-        e2e.Add(std::chrono::duration<double, std::milli>(rx - it->second).count());
-      }
-    }
-  }
+  const ppf::dds::LatencyStats e2e = EndToEnd(odom, written);
   participant->delete_contained_entities();
   fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
   if (!got || !ppf::dds::ExitedWith(status, 0)) {
     std::fprintf(stderr, "ppf_node did not report a summary / exit 0\n");
     return 1;
   }
-
-  std::printf(
-      "ppf_latency_bench: %d scans x %u points (%.1f MB, HDL-64 size) at %.0f Hz, "
-      "profile %s, OMP_WAIT_POLICY %s, node nice %d\n\n",
-      scans, cloud.width(), cloud_mb, rate_hz, profile.c_str(),
-      !omp_policy.empty()              ? omp_policy.c_str()
-      : std::getenv("OMP_WAIT_POLICY") ? std::getenv("OMP_WAIT_POLICY")
-                                       : "passive (node default)",
-      node_nice);
-  std::printf("| %-52s | %8s | %8s | %8s |\n", "metric (ms)", "p50", "p99", "max");
-  std::printf("|%s|%s|%s|%s|\n", std::string(54, '-').c_str(), std::string(10, '-').c_str(),
-              std::string(10, '-').c_str(), std::string(10, '-').c_str());
-  std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n", "node overhead (latency - core - waits)",
-              Field(summary, "overhead_p50_ms"), Field(summary, "overhead_p99_ms"),
-              Field(summary, "overhead_max_ms"));
-  std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n",
-              "node latency (DDS receive -> odometry published)", Field(summary, "latency_p50_ms"),
-              Field(summary, "latency_p99_ms"), Field(summary, "latency_max_ms"));
-  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "core time (decode + pipeline)",
-              Field(summary, "core_p50_ms"), Field(summary, "core_p99_ms"), "");
-  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "  of which: listener take + CDR decode",
-              Field(summary, "decode_p50_ms"), Field(summary, "decode_p99_ms"), "");
-  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "  of which: scan queue -> executor",
-              Field(summary, "queue_p50_ms"), Field(summary, "queue_p99_ms"), "");
-  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n",
-              "  of which: conversion + publishing all outputs", Field(summary, "publish_p50_ms"),
-              Field(summary, "publish_p99_ms"), "");
-  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "scan queued behind the core (older scans)",
-              Field(summary, "behind_core_p50_ms"), Field(summary, "behind_core_p99_ms"), "");
-  std::printf("| %-52s | %8.3f | %8.3f | %8s |\n", "scan waiting in core for IMU coverage",
-              Field(summary, "imu_wait_p50_ms"), Field(summary, "imu_wait_p99_ms"), "");
-  std::printf("| %-52s | %8.3f | %8.3f | %8.3f |\n",
-              "end to end (bench write -> odometry received)", e2e.Percentile(50),
-              e2e.Percentile(99), e2e.Max());
-  std::printf(
-      "\nscans written %d, received %.0f, processed %.0f, odometry %.0f, dropped %.0f; "
-      "odometry matched here %zu\n",
-      scans, Field(summary, "scans_received"), Field(summary, "scans_processed"),
-      Field(summary, "odometry_published"), Field(summary, "scans_dropped"), e2e.count());
-  const double p99 = Field(summary, "overhead_p99_ms");
-  std::printf("target node overhead p99 < 2 ms: %s\n", p99 < 2.0 ? "met" : "NOT met");
+  PrintTable(o, cloud, cloud_mb, summary, e2e);
   return 0;
 }

@@ -267,19 +267,21 @@ void RecordListener::on_subscription_matched(fdds::DataReader*,
   recorder_->Matched(topic_, s.current_count);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  std::vector<std::string> topics;
-  std::map<std::string, std::string> types;
+struct RecordOptions {
+  std::vector<std::string> topics;           // ROS names, "/..."
+  std::map<std::string, std::string> types;  // --types: topic -> ROS type
   std::string out_dir, storage = "mcap";
   double duration_s = 0.0;
   ppf::dds::DdsCliOptions dds;
+};
+
+// The command line into *o (topics as ROS names); -1 to go on, else the exit status.
+int ParseArgs(int argc, char** argv, RecordOptions* o) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (ppf::dds::ParseDdsOption(argc, argv, &i, &dds)) continue;
+    if (ppf::dds::ParseDdsOption(argc, argv, &i, &o->dds)) continue;
     if (a == "--topics") {
-      topics = ppf::dds::TakeList(argc, argv, &i);
+      o->topics = ppf::dds::TakeList(argc, argv, &i);
     } else if (a == "--types") {
       for (const std::string& t : ppf::dds::TakeList(argc, argv, &i)) {
         const size_t sep = t.find(":=");
@@ -287,33 +289,58 @@ int main(int argc, char** argv) {
           Log(Level::kError, "--types expects /topic:=pkg/msg/Type, got '" + t + "'");
           return 2;
         }
-        types[t.substr(0, sep)] = t.substr(sep + 2);
+        o->types[t.substr(0, sep)] = t.substr(sep + 2);
       }
     } else if (a == "--out" && i + 1 < argc) {
-      out_dir = argv[++i];
+      o->out_dir = argv[++i];
     } else if (a == "--storage" && i + 1 < argc) {
-      storage = argv[++i];
+      o->storage = argv[++i];
     } else if (a == "--duration" && i + 1 < argc) {
-      duration_s = std::atof(argv[++i]);
+      o->duration_s = std::atof(argv[++i]);
     } else {
       Usage();
       return a == "-h" || a == "--help" ? 0 : 2;
     }
   }
-  if (topics.empty() || out_dir.empty() || (storage != "mcap" && storage != "sqlite3")) {
+  if (o->topics.empty() || o->out_dir.empty() ||
+      (o->storage != "mcap" && o->storage != "sqlite3")) {
     Usage();
     return 2;
   }
-  for (auto& t : topics) {
+  for (auto& t : o->topics) {
     if (t.rfind("rt/", 0) == 0) t = ppf::dds::DdsTopicToRos(t);
     if (t.empty() || t[0] != '/') t = "/" + t;
   }
+  return -1;
+}
+
+// A participant created disabled: its listener must be attached before discovery starts (the
+// caller attaches it, then enables the participant).
+fdds::DomainParticipant* CreateDisabledParticipant(const ppf::dds::ParticipantOptions& popt,
+                                                   std::string* error) {
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  fdds::DomainParticipantFactoryQos fqos;
+  factory->get_qos(fqos);
+  fqos.entity_factory().autoenable_created_entities = false;
+  factory->set_qos(fqos);
+  fdds::DomainParticipant* participant = ppf::dds::CreateParticipant(popt, error);
+  fqos.entity_factory().autoenable_created_entities = true;
+  factory->set_qos(fqos);
+  return participant;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  RecordOptions o;
+  const int parsed = ParseArgs(argc, argv, &o);
+  if (parsed >= 0) return parsed;
 
   std::unique_ptr<ppf::bag::Writer> writer;
   try {
     ppf::bag::WriterOptions wopt;
-    wopt.storage = storage == "mcap" ? ppf::bag::Storage::kMcap : ppf::bag::Storage::kSqlite3;
-    writer = std::make_unique<ppf::bag::Writer>(out_dir, wopt);
+    wopt.storage = o.storage == "mcap" ? ppf::bag::Storage::kMcap : ppf::bag::Storage::kSqlite3;
+    writer = std::make_unique<ppf::bag::Writer>(o.out_dir, wopt);
   } catch (const std::exception& e) {
     Log(Level::kError, e.what());
     return 1;
@@ -321,24 +348,14 @@ int main(int argc, char** argv) {
 
   ppf::dds::StopOnSignals();
 
-  Recorder recorder(writer.get(), topics, types);
-  ppf::dds::ParticipantOptions popt{dds.domain_id, dds.profiles_file, dds.profile_name,
+  Recorder recorder(writer.get(), o.topics, o.types);
+  ppf::dds::ParticipantOptions popt{o.dds.domain_id, o.dds.profiles_file, o.dds.profile_name,
                                     "ppf_record"};
-  Log(Level::kInfo, ppf::dds::ChooseToolTransport(dds.fastdds_defaults, &popt));
+  Log(Level::kInfo, ppf::dds::ChooseToolTransport(o.dds.fastdds_defaults, &popt));
   // The participant listener must be attached before discovery starts: create the participant
   // disabled, attach, then enable.
   std::string error;
-  fdds::DomainParticipant* participant = nullptr;
-  {
-    auto* factory = fdds::DomainParticipantFactory::get_instance();
-    fdds::DomainParticipantFactoryQos fqos;
-    factory->get_qos(fqos);
-    fqos.entity_factory().autoenable_created_entities = false;
-    factory->set_qos(fqos);
-    participant = ppf::dds::CreateParticipant(popt, &error);
-    fqos.entity_factory().autoenable_created_entities = true;
-    factory->set_qos(fqos);
-  }
+  fdds::DomainParticipant* participant = CreateDisabledParticipant(popt, &error);
   if (!participant) {
     Log(Level::kError, error);
     return 1;
@@ -354,9 +371,9 @@ int main(int argc, char** argv) {
 
   const auto t0 = std::chrono::steady_clock::now();
   while (!StopRequested()) {
-    if (duration_s > 0 &&
+    if (o.duration_s > 0 &&
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() >=
-            duration_s) {
+            o.duration_s) {
       break;
     }
     recorder.CreatePending();

@@ -73,9 +73,7 @@ struct TopicOut {
   uint64_t count = 0;
 };
 
-}  // namespace
-
-int main(int argc, char** argv) {
+struct ReplayOptions {
   std::string bag_dir;
   double rate = 1.0, start_s = 0.0, wait_matched_s = 0.0, linger_s = 1.0, delay_s = 0.5;
   bool loop = false, best_effort = false;
@@ -83,29 +81,33 @@ int main(int argc, char** argv) {
   std::vector<std::string> topics;
   std::map<std::string, std::string> remap;
   ppf::dds::DdsCliOptions dds;
+};
+
+// The command line into *o; -1 to go on, else the exit status (usage, help or a bad --remap).
+int ParseArgs(int argc, char** argv, ReplayOptions* o) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (ppf::dds::ParseDdsOption(argc, argv, &i, &dds)) continue;
+    if (ppf::dds::ParseDdsOption(argc, argv, &i, &o->dds)) continue;
     if (a == "--bag" && i + 1 < argc) {
-      bag_dir = argv[++i];
+      o->bag_dir = argv[++i];
     } else if (a == "--rate" && i + 1 < argc) {
-      rate = std::atof(argv[++i]);
+      o->rate = std::atof(argv[++i]);
     } else if (a == "--start" && i + 1 < argc) {
-      start_s = std::atof(argv[++i]);
+      o->start_s = std::atof(argv[++i]);
     } else if (a == "--loop") {
-      loop = true;
+      o->loop = true;
     } else if (a == "--best-effort") {
-      best_effort = true;
+      o->best_effort = true;
     } else if (a == "--depth" && i + 1 < argc) {
-      depth = std::max(1, std::atoi(argv[++i]));
+      o->depth = std::max(1, std::atoi(argv[++i]));
     } else if (a == "--wait-matched" && i + 1 < argc) {
-      wait_matched_s = std::atof(argv[++i]);
+      o->wait_matched_s = std::atof(argv[++i]);
     } else if (a == "--delay" && i + 1 < argc) {
-      delay_s = std::max(0.0, std::atof(argv[++i]));
+      o->delay_s = std::max(0.0, std::atof(argv[++i]));
     } else if (a == "--linger" && i + 1 < argc) {
-      linger_s = std::max(0.0, std::atof(argv[++i]));
+      o->linger_s = std::max(0.0, std::atof(argv[++i]));
     } else if (a == "--topics") {
-      topics = ppf::dds::TakeList(argc, argv, &i);
+      o->topics = ppf::dds::TakeList(argc, argv, &i);
     } else if (a == "--remap") {
       for (const std::string& r : ppf::dds::TakeList(argc, argv, &i)) {
         const size_t sep = r.find(":=");
@@ -113,41 +115,28 @@ int main(int argc, char** argv) {
           Log(Level::kError, "--remap expects FROM:=TO, got '" + r + "'");
           return 2;
         }
-        remap[r.substr(0, sep)] = r.substr(sep + 2);
+        o->remap[r.substr(0, sep)] = r.substr(sep + 2);
       }
     } else {
       Usage();
       return a == "-h" || a == "--help" ? 0 : 2;
     }
   }
-  if (bag_dir.empty() || !(rate > 0.0)) {
+  if (o->bag_dir.empty() || !(o->rate > 0.0)) {
     Usage();
     return 2;
   }
+  return -1;
+}
 
-  std::unique_ptr<ppf::bag::Reader> reader;
-  try {
-    reader = std::make_unique<ppf::bag::Reader>(bag_dir);
-    if (!topics.empty()) reader->SetTopicFilter(topics);
-  } catch (const std::exception& e) {
-    Log(Level::kError, e.what());
-    return 1;
-  }
-  const ppf::bag::BagInfo& info = reader->Info();
-
-  ppf::dds::ParticipantOptions popt{dds.domain_id, dds.profiles_file, dds.profile_name,
-                                    "ppf_replay"};
-  Log(Level::kInfo, ppf::dds::ChooseToolTransport(dds.fastdds_defaults, &popt));
-  std::string error;
-  fdds::DomainParticipant* participant = ppf::dds::CreateParticipant(popt, &error);
-  if (!participant) {
-    Log(Level::kError, error);
-    return 1;
-  }
+// One raw writer per bag topic that can go on DDS (and is selected), into *outs by bag topic
+// name. False (logged) if a writer cannot be created.
+bool CreateWriters(const ppf::bag::BagInfo& info, const ReplayOptions& o,
+                   fdds::DomainParticipant* participant, std::map<std::string, TopicOut>* outs) {
   fdds::Publisher* publisher = participant->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
-  std::map<std::string, TopicOut> outs;  // by bag topic name
   for (const auto& t : info.topics) {
-    if (!topics.empty() && std::find(topics.begin(), topics.end(), t.info.name) == topics.end()) {
+    if (!o.topics.empty() &&
+        std::find(o.topics.begin(), o.topics.end(), t.info.name) == o.topics.end()) {
       continue;
     }
     const std::string dds_type = ppf::dds::RosTypeToDds(t.info.type);
@@ -156,52 +145,57 @@ int main(int argc, char** argv) {
                             t.info.serialization_format + "' cannot go on DDS");
       continue;
     }
-    TopicOut& out = outs[t.info.name];
-    out.ros_name = remap.count(t.info.name) ? remap[t.info.name] : t.info.name;
+    TopicOut& out = (*outs)[t.info.name];
+    const auto remapped = o.remap.find(t.info.name);
+    out.ros_name = remapped != o.remap.end() ? remapped->second : t.info.name;
     out.type = fdds::TypeSupport(new ppf::dds::RawPubSubType(dds_type));
     out.type.register_type(participant);
     fdds::Topic* topic = participant->create_topic(ppf::dds::RosTopicToDds(out.ros_name), dds_type,
                                                    fdds::TOPIC_QOS_DEFAULT);
     out.matches = std::make_unique<MatchCounter>();
     const auto qos = ppf::dds::SensorWriterQos(
-        best_effort ? ppf::dds::Reliability::kBestEffort : ppf::dds::Reliability::kReliable, depth);
+        o.best_effort ? ppf::dds::Reliability::kBestEffort : ppf::dds::Reliability::kReliable,
+        o.depth);
     out.writer = topic ? publisher->create_datawriter(topic, qos, out.matches.get()) : nullptr;
     if (!out.writer) {
       Log(Level::kError, "cannot create writer for " + out.ros_name);
-      participant->delete_contained_entities();
-      fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
-      return 1;
+      return false;
     }
     Log(Level::kInfo, "replaying " + t.info.name + " -> " + ppf::dds::RosTopicToDds(out.ros_name) +
                           " [" + dds_type + "], " + std::to_string(t.message_count) + " messages");
   }
+  return true;
+}
 
-  ppf::dds::StopOnSignals();
-
-  if (wait_matched_s > 0.0) {
-    const auto deadline = std::chrono::steady_clock::now() +
-                          std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                              std::chrono::duration<double>(wait_matched_s));
-    bool all = false;
-    while (!StopRequested() && !all && std::chrono::steady_clock::now() < deadline) {
-      all = true;
-      for (auto& [name, out] : outs) all = all && out.matches->matched > 0;
-      if (!all) std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    if (!all) Log(Level::kWarn, "not every topic has a subscriber; playing anyway");
-    // Our writer matching a reader does not mean that reader has matched our writer yet (the
-    // two directions of discovery complete independently); a sample sent in between is ignored
-    // by the reader, without a trace. Give the other direction a moment (--delay).
-    if (all) std::this_thread::sleep_for(std::chrono::duration<double>(delay_s));
+// --wait-matched: until every writer has a reader (or the time is up), then --delay.
+void WaitMatched(const ReplayOptions& o, const std::map<std::string, TopicOut>& outs) {
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(o.wait_matched_s));
+  bool all = false;
+  while (!StopRequested() && !all && std::chrono::steady_clock::now() < deadline) {
+    all = true;
+    for (auto& [name, out] : outs) all = all && out.matches->matched > 0;
+    if (!all) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  std::printf("PPF_REPLAY_START topics=%zu\n", outs.size());
-  std::fflush(stdout);
+  if (!all) Log(Level::kWarn, "not every topic has a subscriber; playing anyway");
+  // Our writer matching a reader does not mean that reader has matched our writer yet (the
+  // two directions of discovery complete independently); a sample sent in between is ignored
+  // by the reader, without a trace. Give the other direction a moment (--delay).
+  if (all) std::this_thread::sleep_for(std::chrono::duration<double>(o.delay_s));
+}
 
-  const int64_t start_ns = info.start_ns + static_cast<int64_t>(std::llround(start_s * 1e9));
-  if (start_s > 0.0) reader->Seek(start_ns);
+struct PlayResult {
   uint64_t total = 0;
   int loops = 0;
   bool failed = false;
+};
+
+// Writes the bag's messages with their recorded timing (scaled by --rate), from --start, again
+// and again with --loop, until the end or a signal.
+PlayResult Play(const ReplayOptions& o, int64_t start_ns, ppf::bag::Reader* reader,
+                std::map<std::string, TopicOut>* outs) {
+  PlayResult result;
   ppf::dds::RawMessage raw;
   while (!StopRequested()) {
     const auto wall0 = std::chrono::steady_clock::now();
@@ -209,10 +203,10 @@ int main(int argc, char** argv) {
     ppf::bag::Message msg;
     try {
       while (!StopRequested() && reader->Next(msg)) {
-        auto it = outs.find(msg.topic);
-        if (it == outs.end()) continue;
+        auto it = outs->find(msg.topic);
+        if (it == outs->end()) continue;
         if (bag0 < 0) bag0 = msg.timestamp_ns;
-        const double offset_s = static_cast<double>(msg.timestamp_ns - bag0) * 1e-9 / rate;
+        const double offset_s = static_cast<double>(msg.timestamp_ns - bag0) * 1e-9 / o.rate;
         const auto due = wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                      std::chrono::duration<double>(offset_s));
         std::this_thread::sleep_until(due);
@@ -221,29 +215,76 @@ int main(int argc, char** argv) {
           Log(Level::kWarn, "write failed on " + it->second.ros_name);
         } else {
           ++it->second.count;
-          ++total;
+          ++result.total;
         }
       }
     } catch (const std::exception& e) {
       Log(Level::kError, e.what());
-      failed = true;
+      result.failed = true;
       break;
     }
-    ++loops;
-    if (!loop || StopRequested()) break;
+    ++result.loops;
+    if (!o.loop || StopRequested()) break;
     reader->Seek(start_ns);  // rewinds; stamps loop back in time, the node must cope
   }
+  return result;
+}
+
+void DeleteParticipant(fdds::DomainParticipant* participant) {
+  participant->delete_contained_entities();
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ReplayOptions o;
+  const int parsed = ParseArgs(argc, argv, &o);
+  if (parsed >= 0) return parsed;
+
+  std::unique_ptr<ppf::bag::Reader> reader;
+  try {
+    reader = std::make_unique<ppf::bag::Reader>(o.bag_dir);
+    if (!o.topics.empty()) reader->SetTopicFilter(o.topics);
+  } catch (const std::exception& e) {
+    Log(Level::kError, e.what());
+    return 1;
+  }
+  const ppf::bag::BagInfo& info = reader->Info();
+
+  ppf::dds::ParticipantOptions popt{o.dds.domain_id, o.dds.profiles_file, o.dds.profile_name,
+                                    "ppf_replay"};
+  Log(Level::kInfo, ppf::dds::ChooseToolTransport(o.dds.fastdds_defaults, &popt));
+  std::string error;
+  fdds::DomainParticipant* participant = ppf::dds::CreateParticipant(popt, &error);
+  if (!participant) {
+    Log(Level::kError, error);
+    return 1;
+  }
+  std::map<std::string, TopicOut> outs;  // by bag topic name
+  if (!CreateWriters(info, o, participant, &outs)) {
+    DeleteParticipant(participant);
+    return 1;
+  }
+
+  ppf::dds::StopOnSignals();
+  if (o.wait_matched_s > 0.0) WaitMatched(o, outs);
+  std::printf("PPF_REPLAY_START topics=%zu\n", outs.size());
+  std::fflush(stdout);
+
+  const int64_t start_ns = info.start_ns + static_cast<int64_t>(std::llround(o.start_s * 1e9));
+  if (o.start_s > 0.0) reader->Seek(start_ns);
+  const PlayResult played = Play(o, start_ns, reader.get(), &outs);
   // Reliable readers: let them fetch the tail before the writers disappear. Best-effort readers
   // do not acknowledge; when a writer goes away, a reader may discard its samples not yet taken,
   // so linger before deleting the writers.
   for (auto& [name, out] : outs) out.writer->wait_for_acknowledgments({5, 0});
-  std::this_thread::sleep_for(std::chrono::duration<double>(linger_s));
+  std::this_thread::sleep_for(std::chrono::duration<double>(o.linger_s));
   std::string counts;
   for (auto& [name, out] : outs) counts += " " + name + "=" + std::to_string(out.count);
-  std::printf("PPF_REPLAY_DONE messages=%llu loops=%d%s\n", (unsigned long long)total, loops,
-              counts.c_str());
+  std::printf("PPF_REPLAY_DONE messages=%llu loops=%d%s\n", (unsigned long long)played.total,
+              played.loops, counts.c_str());
   std::fflush(stdout);
-  participant->delete_contained_entities();
-  fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
-  return failed ? 1 : 0;
+  DeleteParticipant(participant);
+  return played.failed ? 1 : 0;
 }

@@ -15,6 +15,7 @@
 #include "dds_test_util.hpp"
 #include "nav_msgs/msg/OdometryPubSubTypes.h"
 #include "nav_msgs/msg/PathPubSubTypes.h"
+#include "node_rig.hpp"
 #include "ppf_bridge/convert.hpp"
 #include "ppf_dds_node/child_process.hpp"
 #include "ppf_dds_node/raw_type.hpp"
@@ -33,11 +34,11 @@ using ppf::test::Collector;
 using ppf::test::CountLinesWith;
 using ppf::test::kProfile;
 using ppf::test::kProfiles;
+using ppf::test::NodeRig;
 using ppf::test::ReadTextFile;
 using ppf::test::SummaryField;
 using ppf::test::TempDir;
 using ppf::test::TestParticipant;
-using ppf::test::WaitForNodeInputsMatched;
 using ppf::test::WaitUntil;
 using ppf::test::WriterMatches;
 namespace fdds = eprosima::fastdds::dds;
@@ -79,81 +80,21 @@ size_t CountLines(const std::string& file) {
   return n;
 }
 
-// Starts ppf_node on <dir>/node.yaml: the loopback test profile on `domain`, then the YAML lines
-// `more`; its log goes to <dir>/node.log. Returns once the node is ready.
-void StartNode(ChildProcess& node, const std::string& dir, int domain, const std::string& more) {
-  const std::string cfg = dir + "/node.yaml";
-  {
-    std::ofstream out(cfg);
-    out << "dds: {domain_id: " << domain << ", profiles_file: \"" << kProfiles
-        << "\", profile_name: " << kProfile << "}\n"
-        << more;
-  }
-  ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", cfg}, {}, dir + "/node.log"));
-  std::string line;
-  ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
-}
-
-// SIGINT; the node prints its summary (returned in *summary, echoed to the test log) and exits 0.
-void StopNode(ChildProcess& node, std::string* summary) {
-  ASSERT_TRUE(ppf::test::StopNodeAndReadSummary(node, summary));
-  std::printf("%s\n", summary->c_str());
-}
-
-// A VLP-16-sized scan of the synthetic room; DriveStaticRoom stamps it.
-sensor_msgs::msg::PointCloud2 Vlp16RoomScan() {
-  ppf::dds::SyntheticLidar lidar;
-  lidar.rings = 16;
-  lidar.columns = 1024;
-  lidar.min_elevation_deg = -15;
-  lidar.max_elevation_deg = 15;
-  return ppf::dds::MakeRoomScan(lidar, 0);
-}
-
-constexpr int64_t kT0 = 1700000000LL * 1000000000LL;
-
-// Publishes a static drive in real time, stamps from kT0: resting IMU every 5 ms and, after 1.5 s
-// of rest (initialization), `scans` scans at 10 Hz: `cloud` again each time, stamped with that
-// scan's start. *seq numbers the IMU samples; *imu_t ends as the next IMU sample's stamp.
-// With `first` > 0 the stamps go on from *imu_t with scan `first` (the call before ended with
-// scan first - 1), as a paused replay resumes.
-void DriveStaticRoom(fdds::DataWriter* imu_w, fdds::DataWriter* cloud_w,
-                     sensor_msgs::msg::PointCloud2& cloud, int scans, uint64_t* seq, int64_t* imu_t,
-                     int first = 0) {
-  const auto wall0 = std::chrono::steady_clock::now();
-  if (first == 0) *imu_t = kT0;
-  const int64_t t_begin = *imu_t;
-  for (int s = first; s <= scans; ++s) {
-    const int64_t scan_end = kT0 + 1500000000LL + s * 100000000LL;
-    while (*imu_t <= scan_end) {
-      sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(*imu_t, (*seq)++);
-      ASSERT_TRUE(imu_w->write(&imu));
-      *imu_t += 5000000;
-    }
-    std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(scan_end - t_begin));
-    if (s == 0) continue;
-    cloud.header().stamp(ppf::msgs::TimeFromNanoseconds(scan_end - 100000000LL));
-    ASSERT_TRUE(cloud_w->write(&cloud));
-  }
-}
-
 }  // namespace
 
 TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput) {
-  const int domain = ppf::test::TestDomainId(11);
-  const std::string dir = TempDir("ppf_node_test");
-  const std::string tum = dir + "/trajectory.tum";
+  NodeRig rig(11);
+  const std::string tum = rig.dir + "/trajectory.tum";
   std::ostringstream more;
   more << "frames: {odom_frame: odom_test, base_frame: imu_link}\n"
        << "outputs: {registered_points: true, path_max_poses: 5}\n"
        << "queues: {scan_capacity: 100}\n"  // a slow CI machine must not turn into drops here
        << "trajectory: {tum_file: \"" << tum << "\"}\n"
        << "diagnostics: {period_s: 1.0}\n";
-  ChildProcess node;
-  ASSERT_NO_FATAL_FAILURE(StartNode(node, dir, domain, more.str()));
+  ASSERT_NO_FATAL_FAILURE(rig.StartNode(more.str()));
   {
     // core.omp_wait_policy (default passive) is applied by re-executing: same pid, env set.
-    std::ifstream env("/proc/" + std::to_string(node.pid()) + "/environ");
+    std::ifstream env("/proc/" + std::to_string(rig.node.pid()) + "/environ");
     std::stringstream ss;
     ss << env.rdbuf();
     const std::string e = ss.str();
@@ -162,24 +103,15 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
     }
   }
 
-  TestParticipant driver(domain, kProfiles, kProfile, "test_driver");
-  ASSERT_TRUE(driver.ok()) << driver.error;
-  WriterMatches cloud_m, imu_m, bad_m;
   // Driver QoS: best effort, as most LiDAR/IMU drivers publish.
-  auto* cloud_w =
-      driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
-                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kBestEffort, 20), &cloud_m);
-  auto* imu_w =
-      driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
-                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 500), &imu_m);
-  Collector<nav_msgs::msg::Odometry> odom;
+  ASSERT_NO_FATAL_FAILURE(
+      rig.OpenDriver(ppf::dds::SensorWriterQos(ppf::dds::Reliability::kBestEffort, 20),
+                     ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 500)));
+  TestParticipant& driver = *rig.driver;
   Collector<tf2_msgs::msg::TFMessage> tf;
   Collector<nav_msgs::msg::Path> path;
   Collector<ppf_msgs::msg::SkeletonPlaneArray> planes;
   Collector<sensor_msgs::msg::PointCloud2> registered;
-  ASSERT_NE(driver.Reader(new nav_msgs::msg::OdometryPubSubType(), "rt/odometry",
-                          ppf::dds::KeepAllReaderQos(), &odom),
-            nullptr);
   ASSERT_NE(driver.Reader(new tf2_msgs::msg::TFMessagePubSubType(), "rt/tf",
                           ppf::dds::KeepAllReaderQos(), &tf),
             nullptr);
@@ -193,25 +125,18 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
                           ppf::dds::KeepAllReaderQos(), &registered),
             nullptr);
   // Malformed payloads come from a second participant: same topic and type name, raw bytes.
-  TestParticipant rogue(domain, kProfiles, kProfile, "test_rogue");
+  WriterMatches bad_m;
+  TestParticipant rogue(rig.domain, kProfiles, kProfile, "test_rogue");
   auto* bad_w = rogue.Writer(new ppf::dds::RawPubSubType("sensor_msgs::msg::dds_::PointCloud2_"),
                              "rt/points", ppf::dds::KeepAllWriterQos(), &bad_m);
-  ASSERT_TRUE(cloud_w && imu_w && bad_w);
-  ASSERT_TRUE(WaitUntil(
-      [&] {
-        return cloud_m.matched > 0 && imu_m.matched > 0 && bad_m.matched > 0 && odom.matched > 0;
-      },
-      20s));
+  ASSERT_TRUE(bad_w);
   // Two participants write /points (driver and rogue): both must be known to the node.
-  ASSERT_TRUE(WaitForNodeInputsMatched(dir + "/node.log", 2, 1, 20s))
-      << "see " << dir << "/node.log";
+  ASSERT_NO_FATAL_FAILURE(rig.WaitMatched(2, [&] { return bad_m.matched > 0; }));
 
   // VLP-16-sized static room: 1.5 s of resting IMU for initialization, then 20 scans at 10 Hz.
-  sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
+  const sensor_msgs::msg::PointCloud2& cloud = rig.cloud;
   const int kScans = 20;
-  int64_t imu_t = 0;
-  uint64_t seq = 0;
-  ASSERT_NO_FATAL_FAILURE(DriveStaticRoom(imu_w, cloud_w, cloud, kScans, &seq, &imu_t));
+  ASSERT_NO_FATAL_FAILURE(rig.Drive(kScans));
   // Malformed input: garbage, a truncated real payload, an unknown field datatype.
   ppf::dds::RawMessage bad;
   bad.payload = {0x00, 0x01, 0x00, 0x00, 0xff, 0xff, 0xff, 0x7f, 0x01};
@@ -224,21 +149,21 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   bad.payload = ppf::msgs::EncodeCdr(weird);
   ASSERT_TRUE(bad_w->write(&bad));
   // A NaN IMU sample is rejected by the listener, not fed to the filter.
-  sensor_msgs::msg::Imu nan_imu = ppf::dds::MakeRestingImu(imu_t, seq++);
+  sensor_msgs::msg::Imu nan_imu = ppf::dds::MakeRestingImu(rig.imu_t, rig.seq++);
   nan_imu.linear_acceleration().x(std::nan(""));
-  ASSERT_TRUE(imu_w->write(&nan_imu));
+  ASSERT_TRUE(rig.imu_w->write(&nan_imu));
   bad_w->wait_for_acknowledgments({5, 0});
 
   // After initialization every scan gives a pose; allow a slow machine 20 s to catch up.
-  WaitUntil([&] { return odom.Count() >= static_cast<size_t>(kScans) - 2; }, 20s);
+  WaitUntil([&] { return rig.odom.Count() >= static_cast<size_t>(kScans) - 2; }, 20s);
   std::this_thread::sleep_for(500ms);
   std::string line;
-  ASSERT_NO_FATAL_FAILURE(StopNode(node, &line));
+  ASSERT_NO_FATAL_FAILURE(rig.Stop(&line));
 
   EXPECT_EQ(SummaryField(line, "scans_malformed"), 3.0);
   EXPECT_EQ(SummaryField(line, "imu_malformed"), 1.0);
   EXPECT_EQ(SummaryField(line, "scans_received"), kScans + 3.0);
-  EXPECT_EQ(SummaryField(line, "imu_received"), static_cast<double>(seq));  // incl. the NaN one
+  EXPECT_EQ(SummaryField(line, "imu_received"), static_cast<double>(rig.seq));  // incl. NaN one
   EXPECT_EQ(SummaryField(line, "scans_processed"), kScans);
   EXPECT_EQ(SummaryField(line, "scans_dropped"), 0.0);
   EXPECT_EQ(SummaryField(line, "resets"), 0.0);
@@ -246,7 +171,7 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   // Initialization needs 1 s of rest: it is complete before the first scan ends.
   EXPECT_GE(published, kScans - 2.0);
 
-  const auto odoms = odom.Samples();
+  const auto odoms = rig.odom.Samples();
   ASSERT_EQ(static_cast<double>(odoms.size()), published);
   double prev = -1;
   for (const auto& o : odoms) {
@@ -298,42 +223,20 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   }
   // TUM trajectory flushed on SIGINT: one line per odometry message.
   EXPECT_EQ(static_cast<double>(CountLines(tum)), published);
-  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
+  rig.RemoveDirUnless(HasFailure());
 }
 
 // A bag replayed with --loop: stamps jump back. The node passes the jump on in one piece (no
 // interleaving of the two timelines), the core resets and initializes again, odometry resumes,
 // and the summary reports it.
 TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
-  const int domain = ppf::test::TestDomainId(12);
-  const std::string dir = TempDir("ppf_node_test");
-  ChildProcess node;
-  ASSERT_NO_FATAL_FAILURE(StartNode(node, dir, domain, "queues: {scan_capacity: 100}\n"));
-  TestParticipant driver(domain, kProfiles, kProfile, "test_driver");
-  ASSERT_TRUE(driver.ok()) << driver.error;
-  WriterMatches cloud_m, imu_m;
-  auto* cloud_w =
-      driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
-                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 50), &cloud_m);
-  auto* imu_w =
-      driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
-                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 1000), &imu_m);
-  Collector<nav_msgs::msg::Odometry> odom;
-  ASSERT_NE(driver.Reader(new nav_msgs::msg::OdometryPubSubType(), "rt/odometry",
-                          ppf::dds::KeepAllReaderQos(), &odom),
-            nullptr);
-  ASSERT_TRUE(cloud_w && imu_w);
-  ASSERT_TRUE(
-      WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 && odom.matched > 0; }, 20s));
-  ASSERT_TRUE(WaitForNodeInputsMatched(dir + "/node.log", 1, 1, 20s))
-      << "see " << dir << "/node.log";
-  sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
+  NodeRig rig(12);
+  ASSERT_NO_FATAL_FAILURE(rig.Start("queues: {scan_capacity: 100}\n"));
+  Collector<nav_msgs::msg::Odometry>& odom = rig.odom;
   const int kScans = 10;
   size_t first_pass = 0;
-  uint64_t seq = 0;
   for (int pass = 0; pass < 2; ++pass) {  // the same 2.5 s of stamps twice
-    int64_t imu_t = 0;
-    ASSERT_NO_FATAL_FAILURE(DriveStaticRoom(imu_w, cloud_w, cloud, kScans, &seq, &imu_t));
+    ASSERT_NO_FATAL_FAILURE(rig.Drive(kScans));
     // No pause between the passes, as with `ros2 bag play --loop`: the new timeline's IMU burst
     // arrives while the old timeline's last scans are still queued.
   }
@@ -351,7 +254,7 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
   }
   std::this_thread::sleep_for(300ms);
   std::string line;
-  ASSERT_NO_FATAL_FAILURE(StopNode(node, &line));
+  ASSERT_NO_FATAL_FAILURE(rig.Stop(&line));
   EXPECT_GE(first_pass, static_cast<size_t>(kScans) - 2);
   EXPECT_GE(odom.Count(), first_pass + kScans - 3) << "odometry did not resume after the jump";
   EXPECT_EQ(SummaryField(line, "time_jumps"), 2.0);  // once on /imu, once on /points
@@ -360,9 +263,9 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
   EXPECT_EQ(SummaryField(line, "imu_late"), 0.0);
   EXPECT_EQ(SummaryField(line, "scans_late"), 0.0);
   EXPECT_EQ(SummaryField(line, "scans_processed"), 2.0 * kScans);
-  EXPECT_EQ(SummaryField(line, "imu_received"), static_cast<double>(seq));
+  EXPECT_EQ(SummaryField(line, "imu_received"), static_cast<double>(rig.seq));
   EXPECT_EQ(SummaryField(line, "imu_out_of_order"), 0.0);
-  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
+  rig.RemoveDirUnless(HasFailure());
 }
 
 // The data stops while the publishers stay matched (a stalled driver, a transport that stopped
@@ -370,36 +273,13 @@ TEST(NodeProcess, TimeJumpBackResetsCleanlyAndOdometryResumes) {
 // stream, counts one stall per stream, and reports the data coming back. Before, it printed
 // status=ok for as long as nothing arrived.
 TEST(NodeProcess, MatchedButSilentInputIsReportedAsStalledCountedAndClearsWhenDataResumes) {
-  const int domain = ppf::test::TestDomainId(13);
-  const std::string dir = TempDir("ppf_node_test");
-  const std::string log = dir + "/node.log";
-  ChildProcess node;
-  ASSERT_NO_FATAL_FAILURE(StartNode(node, dir, domain,
-                                    "queues: {scan_capacity: 100}\n"
-                                    "diagnostics: {period_s: 0.5, stall_warn_s: 2.0}\n"));
-  TestParticipant driver(domain, kProfiles, kProfile, "test_driver");
-  ASSERT_TRUE(driver.ok()) << driver.error;
-  WriterMatches cloud_m, imu_m;
-  auto* cloud_w =
-      driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
-                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 50), &cloud_m);
-  auto* imu_w =
-      driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
-                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 1000), &imu_m);
-  Collector<nav_msgs::msg::Odometry> odom;
-  ASSERT_NE(driver.Reader(new nav_msgs::msg::OdometryPubSubType(), "rt/odometry",
-                          ppf::dds::KeepAllReaderQos(), &odom),
-            nullptr);
-  ASSERT_TRUE(cloud_w && imu_w);
-  ASSERT_TRUE(
-      WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 && odom.matched > 0; }, 20s));
-  ASSERT_TRUE(WaitForNodeInputsMatched(log, 1, 1, 20s)) << "see " << log;
+  NodeRig rig(13);
+  const std::string& log = rig.log;
+  ASSERT_NO_FATAL_FAILURE(
+      rig.Start("queues: {scan_capacity: 100}\ndiagnostics: {period_s: 0.5, stall_warn_s: 2.0}\n"));
 
-  sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
   const int kScans = 10;
-  int64_t imu_t = 0;
-  uint64_t seq = 0;
-  ASSERT_NO_FATAL_FAILURE(DriveStaticRoom(imu_w, cloud_w, cloud, kScans, &seq, &imu_t));
+  ASSERT_NO_FATAL_FAILURE(rig.Drive(kScans));
   const std::string stalled_points = "] [WARN] points: stalled: nothing received for ";
   const std::string stalled_imu = "] [WARN] imu: stalled: nothing received for ";
   EXPECT_EQ(CountLinesWith(ReadTextFile(log), "stalled"), 0) << "a stall while data flowed";
@@ -423,8 +303,7 @@ TEST(NodeProcess, MatchedButSilentInputIsReportedAsStalledCountedAndClearsWhenDa
   }
 
   // The data resumes (stamps go on where they stopped): the stall ends and the status clears.
-  ASSERT_NO_FATAL_FAILURE(
-      DriveStaticRoom(imu_w, cloud_w, cloud, 2 * kScans, &seq, &imu_t, kScans + 1));
+  ASSERT_NO_FATAL_FAILURE(rig.Drive(2 * kScans, kScans + 1));
   ASSERT_TRUE(WaitUntil(
       [&] {
         const std::string l = ReadTextFile(log);
@@ -435,17 +314,17 @@ TEST(NodeProcess, MatchedButSilentInputIsReportedAsStalledCountedAndClearsWhenDa
       },
       10s))
       << "see " << log;
-  WaitUntil([&] { return odom.Count() >= 2 * static_cast<size_t>(kScans) - 2; }, 20s);
+  WaitUntil([&] { return rig.odom.Count() >= 2 * static_cast<size_t>(kScans) - 2; }, 20s);
   std::this_thread::sleep_for(300ms);
   std::string line;
-  ASSERT_NO_FATAL_FAILURE(StopNode(node, &line));
+  ASSERT_NO_FATAL_FAILURE(rig.Stop(&line));
   EXPECT_EQ(SummaryField(line, "points_stalls"), 1.0);
   EXPECT_EQ(SummaryField(line, "imu_stalls"), 1.0);
   // Same timeline across the pause: no reset, every scan processed.
   EXPECT_EQ(SummaryField(line, "resets"), 0.0);
   EXPECT_EQ(SummaryField(line, "scans_processed"), 2.0 * kScans);
   EXPECT_EQ(CountLinesWith(ReadTextFile(log), "  stalls     points 1  imu 1  "), 1);
-  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
+  rig.RemoveDirUnless(HasFailure());
 }
 
 // `points` points of `scan` over and over, as x, y, z, intensity (16 bytes a point, as many
@@ -476,46 +355,26 @@ sensor_msgs::msg::PointCloud2 TiledCloud(const sensor_msgs::msg::PointCloud2& sc
 // queues.max_cloud_points (default 4M) it is refused by size and counted, the node keeps
 // publishing odometry for the following scans, and its memory comes back down.
 TEST(NodeProcess, FiveMillionPointCloudIsRefusedBySizeAndOdometryGoesOnWithMemoryBounded) {
-  const int domain = ppf::test::TestDomainId(14);
-  const std::string dir = TempDir("ppf_node_test");
-  const std::string log = dir + "/node.log";
-  ChildProcess node;
-  ASSERT_NO_FATAL_FAILURE(StartNode(
-      node, dir, domain, "qos: {sensor_reliability: reliable}\nqueues: {scan_capacity: 100}\n"));
-  TestParticipant driver(domain, kProfiles, kProfile, "test_driver");
-  ASSERT_TRUE(driver.ok()) << driver.error;
-  WriterMatches cloud_m, imu_m;
-  auto* cloud_w =
-      driver.Writer(new sensor_msgs::msg::PointCloud2PubSubType(), "rt/points",
-                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 50), &cloud_m);
-  auto* imu_w =
-      driver.Writer(new sensor_msgs::msg::ImuPubSubType(), "rt/imu",
-                    ppf::dds::SensorWriterQos(ppf::dds::Reliability::kReliable, 1000), &imu_m);
-  Collector<nav_msgs::msg::Odometry> odom;
-  ASSERT_NE(driver.Reader(new nav_msgs::msg::OdometryPubSubType(), "rt/odometry",
-                          ppf::dds::KeepAllReaderQos(), &odom),
-            nullptr);
-  ASSERT_TRUE(cloud_w && imu_w);
-  ASSERT_TRUE(
-      WaitUntil([&] { return cloud_m.matched > 0 && imu_m.matched > 0 && odom.matched > 0; }, 20s));
-  ASSERT_TRUE(WaitForNodeInputsMatched(log, 1, 1, 20s)) << "see " << log;
+  NodeRig rig(14);
+  const std::string& log = rig.log;
+  ChildProcess& node = rig.node;
+  ASSERT_NO_FATAL_FAILURE(
+      rig.Start("qos: {sensor_reliability: reliable}\nqueues: {scan_capacity: 100}\n"));
+  Collector<nav_msgs::msg::Odometry>& odom = rig.odom;
 
-  sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
   const int kScans = 10;
-  int64_t imu_t = 0;
-  uint64_t seq = 0;
-  ASSERT_NO_FATAL_FAILURE(DriveStaticRoom(imu_w, cloud_w, cloud, kScans, &seq, &imu_t));
+  ASSERT_NO_FATAL_FAILURE(rig.Drive(kScans));
   ASSERT_TRUE(WaitUntil([&] { return odom.Count() >= static_cast<size_t>(kScans) - 2; }, 20s));
   const long rss_before_kb = ppf::test::ProcStatusKb(node.pid(), "VmRSS");
   const long anon_before_kb = ppf::test::ProcStatusKb(node.pid(), "RssAnon");
   const size_t odom_before = odom.Count();
 
   const uint32_t kHugePoints = 5000000;
-  sensor_msgs::msg::PointCloud2 huge = TiledCloud(cloud, kHugePoints);
-  huge.header().stamp(ppf::msgs::TimeFromNanoseconds(imu_t));
+  sensor_msgs::msg::PointCloud2 huge = TiledCloud(rig.cloud, kHugePoints);
+  huge.header().stamp(ppf::msgs::TimeFromNanoseconds(rig.imu_t));
   const double huge_mb = huge.data().size() / 1e6;
   const auto sent = std::chrono::steady_clock::now();
-  ASSERT_TRUE(cloud_w->write(&huge));
+  ASSERT_TRUE(rig.cloud_w->write(&huge));
   const std::string refused =
       "] [WARN] 5000000-point PointCloud2 on rt/points exceeds queues.max_cloud_points 4000000: "
       "skipped";
@@ -525,15 +384,14 @@ TEST(NodeProcess, FiveMillionPointCloudIsRefusedBySizeAndOdometryGoesOnWithMemor
       std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
 
   // The scans after it, on the same timeline.
-  ASSERT_NO_FATAL_FAILURE(
-      DriveStaticRoom(imu_w, cloud_w, cloud, 2 * kScans, &seq, &imu_t, kScans + 1));
+  ASSERT_NO_FATAL_FAILURE(rig.Drive(2 * kScans, kScans + 1));
   WaitUntil([&] { return odom.Count() >= odom_before + kScans - 1; }, 20s);
   std::this_thread::sleep_for(300ms);
   const long rss_after_kb = ppf::test::ProcStatusKb(node.pid(), "VmRSS");
   const long anon_after_kb = ppf::test::ProcStatusKb(node.pid(), "RssAnon");
   const long hwm_kb = ppf::test::ProcStatusKb(node.pid(), "VmHWM");
   std::string line;
-  ASSERT_NO_FATAL_FAILURE(StopNode(node, &line));
+  ASSERT_NO_FATAL_FAILURE(rig.Stop(&line));
   std::printf(
       "%.0f MB cloud delivered and refused in %.2f s; node VmRSS %ld kB before, %ld kB "
       "after (RssAnon %ld -> %ld kB), VmHWM %ld kB\n",
@@ -557,13 +415,13 @@ TEST(NodeProcess, FiveMillionPointCloudIsRefusedBySizeAndOdometryGoesOnWithMemor
   if (ppf::test::kUnderTsan) {
     // TSan's allocator keeps freed memory and its shadow grows with every byte touched: the
     // node's memory figures say nothing about ours there (the Release stage checks them).
-    if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
+    rig.RemoveDirUnless(HasFailure());
     return;
   }
   EXPECT_LT(hwm_kb - rss_before_kb, static_cast<long>(3 * huge_mb * 1000));
   EXPECT_LT(anon_after_kb - anon_before_kb, static_cast<long>(0.1 * huge_mb * 1000));
   EXPECT_LT(rss_after_kb - rss_before_kb, 32 * 1024 + static_cast<long>(0.1 * huge_mb * 1000));
-  if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
+  rig.RemoveDirUnless(HasFailure());
 }
 
 TEST(NodeProcess, BadConfigFailsFastWithExitCode) {

@@ -6,40 +6,14 @@
 #include <vector>
 
 #include "ppf_msgs_cdr/cdr.hpp"
+#include "ppf_msgs_cdr/testing/sample_cloud.hpp"
 #include "ppf_msgs_cdr/time.hpp"
 #include "sensor_msgs/msg/PointCloud2.h"
 
 namespace ppf::msgs {
 namespace {
 
-sensor_msgs::msg::PointCloud2 MakeCloud(uint32_t n) {
-  sensor_msgs::msg::PointCloud2 c;
-  c.header().stamp(TimeFromNanoseconds(1700000000123456789LL));
-  c.header().frame_id("velodyne");
-  c.height(1);
-  c.width(n);
-  const char* names[] = {"x", "y", "z", "intensity"};
-  for (uint32_t i = 0; i < 4; ++i) {
-    sensor_msgs::msg::PointField f;
-    f.name(names[i]);
-    f.offset(4 * i);
-    f.datatype(7);
-    f.count(1);
-    c.fields().push_back(f);
-  }
-  sensor_msgs::msg::PointField t;
-  t.name("t");
-  t.offset(16);
-  t.datatype(6);
-  t.count(1);
-  c.fields().push_back(t);
-  c.point_step(20);
-  c.row_step(20 * n);
-  c.data().resize(20 * n);
-  for (uint32_t i = 0; i < 20 * n; ++i) c.data()[i] = static_cast<uint8_t>(i * 7);
-  c.is_dense(true);
-  return c;
-}
+using test_util::MakeCloud;
 
 TEST(Cdr, EncodeDecodeRoundTrip) {
   auto cloud = MakeCloud(1000);

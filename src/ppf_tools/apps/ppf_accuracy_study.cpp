@@ -56,59 +56,40 @@ std::string Usage() {
          "  -h, --help            this text\n";
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  ppf::tools::StudyOptions opts;
-  opts.sequences = kDefaultSequences;
-  opts.config_dir = PPF_DEFAULT_CONFIG_DIR;
-  std::string modes_arg = "knn", save_dir;
-  const auto own = [&](int n, char** args, int* i, std::string* error) {
-    const std::string a = args[*i];
-    if (a != "--modes" && a != "--save") return 0;
-    if (*i + 1 >= n) {
-      *error = "missing value after " + a;
-      return -1;
-    }
-    (a == "--modes" ? modes_arg : save_dir) = args[++*i];
-    return 1;
-  };
-  bool help = false;
-  std::string error;
-  if (!ppf::tools::ParseStudyCommandLine(argc, argv, &opts, &help, &error, own)) Fail(error);
-  if (help) {
-    std::cout << Usage();
-    return 0;
-  }
+// "knn", "ppf" or both, comma-separated; exits with a message on anything else.
+std::vector<ppf::Mode> ParseModes(const std::string& modes_arg) {
   std::vector<ppf::Mode> modes;
-  {
-    std::stringstream ss(modes_arg);
-    std::string m;
-    while (std::getline(ss, m, ',')) {
-      if (m == "knn")
-        modes.push_back(ppf::Mode::kKnn);
-      else if (m == "ppf")
-        modes.push_back(ppf::Mode::kPpf);
-      else
-        Fail("--modes: unknown mode '" + m + "' (knn, ppf)");
-    }
-    if (modes.empty()) Fail("--modes: no mode given");
+  std::stringstream ss(modes_arg);
+  std::string m;
+  while (std::getline(ss, m, ',')) {
+    if (m == "knn")
+      modes.push_back(ppf::Mode::kKnn);
+    else if (m == "ppf")
+      modes.push_back(ppf::Mode::kPpf);
+    else
+      Fail("--modes: unknown mode '" + m + "' (knn, ppf)");
   }
-  std::vector<ppf::tools::SequenceSpec> sequences;
-  if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
+  if (modes.empty()) Fail("--modes: no mode given");
+  return modes;
+}
+
+struct Row {
+  std::string name, mode, motion;
+  ppf::tools::AccuracyBound bound;
+  ppf::tools::ModeRun run;
+  std::string failure;  // non-empty: the run could not be made
+};
+
+// One row per sequence and mode: the sequence generated (once) and run in that mode, or why not.
+// With `save_dir`, each run's trajectory (.tum) and per-scan stats (.csv) go there.
+std::vector<Row> RunStudy(const ppf::tools::StudyOptions& opts,
+                          const std::vector<ppf::tools::SequenceSpec>& sequences,
+                          const std::vector<ppf::Mode>& modes, const std::string& save_dir) {
   const double duration = opts.EffectiveDuration();
   const double tilt_after = opts.EffectiveTiltAfter();
-  if (!save_dir.empty()) std::filesystem::create_directories(save_dir);
-
-  struct Row {
-    std::string name, mode, motion;
-    ppf::tools::AccuracyBound bound;
-    ppf::tools::ModeRun run;
-    std::string failure;  // non-empty: the run could not be made
-  };
   std::vector<Row> rows;
   for (const auto& seq : sequences) {
-    std::string bag, failure, motion;
+    std::string bag, failure, motion, error;
     ppf::Config config;
     ppf::Trajectory gt;
     try {
@@ -154,7 +135,11 @@ int main(int argc, char** argv) {
       rows.push_back(std::move(row));
     }
   }
+  return rows;
+}
 
+// The table, then issue 11's gravity lines and the verdict. Returns the number of failed runs.
+int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after) {
   std::cout << "\nAPE against the issues' bounds, " << duration
             << " s sequences (SE(3)-aligned; RPE between consecutive scans; posyaw: APE aligned by"
                " position + yaw only;\ntilt: degrees between estimated and true gravity from "
@@ -208,5 +193,38 @@ int main(int argc, char** argv) {
   std::cout << "\n";
   if (failed > 0) std::cout << failed << " run(s) failed\n";
   std::cout << (all_met ? "all bounds met" : "some bounds missed") << "\n";
+  return failed;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ppf::tools::StudyOptions opts;
+  opts.sequences = kDefaultSequences;
+  opts.config_dir = PPF_DEFAULT_CONFIG_DIR;
+  std::string modes_arg = "knn", save_dir;
+  const auto own = [&](int n, char** args, int* i, std::string* error) {
+    const std::string a = args[*i];
+    if (a != "--modes" && a != "--save") return 0;
+    if (*i + 1 >= n) {
+      *error = "missing value after " + a;
+      return -1;
+    }
+    (a == "--modes" ? modes_arg : save_dir) = args[++*i];
+    return 1;
+  };
+  bool help = false;
+  std::string error;
+  if (!ppf::tools::ParseStudyCommandLine(argc, argv, &opts, &help, &error, own)) Fail(error);
+  if (help) {
+    std::cout << Usage();
+    return 0;
+  }
+  const std::vector<ppf::Mode> modes = ParseModes(modes_arg);
+  std::vector<ppf::tools::SequenceSpec> sequences;
+  if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
+  if (!save_dir.empty()) std::filesystem::create_directories(save_dir);
+  const std::vector<Row> rows = RunStudy(opts, sequences, modes, save_dir);
+  const int failed = PrintTable(rows, opts.EffectiveDuration(), opts.EffectiveTiltAfter());
   return failed > 0 ? 1 : 0;  // a study reports; test_accuracy asserts the bounds
 }

@@ -63,19 +63,23 @@ double Number(const std::string& key, const std::string& v) {
   return x;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+struct Cli {
   ppf::tools::EnduranceOptions opts;
-  opts.roam_radius = 600.0;
   std::string mode = "knn", config_file, config_dir = PPF_DEFAULT_CONFIG_DIR;
   double map_radius = -1.0;
   int threads = -1;
+};
+
+// The command line, checked; exits with a message on anything wrong (0 after --help).
+Cli ParseArgs(int argc, char** argv) {
+  Cli cli;
+  ppf::tools::EnduranceOptions& opts = cli.opts;
+  opts.roam_radius = 600.0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "-h" || a == "--help") {
       std::cout << kUsage;
-      return 0;
+      std::exit(0);
     }
     if (a.rfind("--", 0) != 0) Fail("unexpected argument '" + a + "' (see --help)");
     if (i + 1 >= argc) Fail("missing value after " + a + " (see --help)");
@@ -87,17 +91,17 @@ int main(int argc, char** argv) {
     else if (a == "--lidar")
       opts.lidar = v;
     else if (a == "--mode")
-      mode = v;
+      cli.mode = v;
     else if (a == "--roam-radius")
       opts.roam_radius = Number(a, v);
     else if (a == "--config")
-      config_file = v;
+      cli.config_file = v;
     else if (a == "--config-dir")
-      config_dir = v;
+      cli.config_dir = v;
     else if (a == "--map-radius")
-      map_radius = Number(a, v);
+      cli.map_radius = Number(a, v);
     else if (a == "--threads")
-      threads = static_cast<int>(Number(a, v));
+      cli.threads = static_cast<int>(Number(a, v));
     else if (a == "--seed")
       opts.seed = static_cast<uint64_t>(Number(a, v));
     else if (a == "--report-every")
@@ -110,7 +114,9 @@ int main(int argc, char** argv) {
   if (!(opts.duration >= 10.0)) Fail("--duration must be at least 10 s");
   if (!(opts.report_every > 0.0)) Fail("--report-every must be positive");
   if (!(opts.tilt_after >= 0.0)) Fail("--tilt-after must be >= 0");
-  if (mode != "knn" && mode != "ppf") Fail("--mode must be knn or ppf, not '" + mode + "'");
+  if (cli.mode != "knn" && cli.mode != "ppf") {
+    Fail("--mode must be knn or ppf, not '" + cli.mode + "'");
+  }
   auto known = [](const std::vector<std::string>& names, const std::string& name) {
     std::string list;
     for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
@@ -121,16 +127,26 @@ int main(int argc, char** argv) {
   if (!scenes.empty()) Fail("unknown scene '" + opts.scene + "' (" + scenes + ")");
   const std::string lidars = known(ppf::sim::LidarModelNames(), opts.lidar);
   if (!lidars.empty()) Fail("unknown LiDAR '" + opts.lidar + "' (" + lidars + ")");
+  return cli;
+}
 
+// The LiDAR's preset (or --config) with the command line's overrides.
+ppf::Config LoadConfig(Cli* cli) {
   ppf::Config config;
-  if (config_file.empty()) config_file = config_dir + "/" + opts.lidar + ".yaml";
-  const auto report = ppf::LoadConfigYaml(config_file, &config);
-  if (!report.ok) Fail(config_file + ": " + report.error);
-  config.mode = mode == "ppf" ? ppf::Mode::kPpf : ppf::Mode::kKnn;
-  if (map_radius >= 0.0) config.map_radius = config.ppf.patch_radius = map_radius;
-  if (threads >= 0) config.num_threads = threads;
+  if (cli->config_file.empty()) {
+    cli->config_file = cli->config_dir + "/" + cli->opts.lidar + ".yaml";
+  }
+  const auto report = ppf::LoadConfigYaml(cli->config_file, &config);
+  if (!report.ok) Fail(cli->config_file + ": " + report.error);
+  config.mode = cli->mode == "ppf" ? ppf::Mode::kPpf : ppf::Mode::kKnn;
+  if (cli->map_radius >= 0.0) config.map_radius = config.ppf.patch_radius = cli->map_radius;
+  if (cli->threads >= 0) config.num_threads = cli->threads;
+  return config;
+}
 
-  std::cout << "ppf_endurance: " << opts.scene << " " << opts.lidar << " " << mode << ", "
+void PrintHeader(const Cli& cli, const ppf::Config& config) {
+  const ppf::tools::EnduranceOptions& opts = cli.opts;
+  std::cout << "ppf_endurance: " << opts.scene << " " << opts.lidar << " " << cli.mode << ", "
             << opts.duration << " s simulated, map radius " << config.map_radius << " m, LRU "
             << config.map.max_voxels << " voxels x " << config.map.max_points_per_voxel
             << " points, roam radius " << opts.roam_radius << " m, seed " << opts.seed << "\n\n";
@@ -141,30 +157,27 @@ int main(int argc, char** argv) {
             << "posed" << std::setw(9) << "wall s"
             << "\n"
             << std::flush;
-  auto print_row = [](const ppf::tools::EnduranceRow& r) {
-    std::cout << std::fixed << std::setprecision(0) << std::setw(8) << r.sim_time
-              << std::setprecision(2) << std::setw(9) << r.distance / 1000.0 << std::setw(11)
-              << r.map_points << std::setw(10) << r.map_voxels << std::setw(11) << r.max_map_points
-              << std::setw(9) << r.patches << std::setprecision(1) << std::setw(9) << r.rss_mb
-              << std::setprecision(2) << std::setw(10) << r.ape_rmse << std::setw(10)
-              << r.ape_posyaw_rmse << std::setprecision(3);
-    if (r.tilt_max_deg >= 0) {
-      std::cout << std::setw(10) << r.tilt_max_deg;
-    } else {
-      std::cout << std::setw(10) << "-";  // no pose past --tilt-after yet
-    }
-    std::cout << std::showpos << std::setprecision(2) << std::setw(9) << r.dz_m << std::noshowpos
-              << std::setw(8) << r.posed << std::setprecision(0) << std::setw(9) << r.wall_s << "\n"
-              << std::flush;
-  };
+}
 
-  ppf::tools::EnduranceReport rep;
-  try {
-    rep = ppf::tools::RunEndurance(opts, config, print_row);
-  } catch (const std::exception& e) {
-    Fail(e.what());
+void PrintRow(const ppf::tools::EnduranceRow& r) {
+  std::cout << std::fixed << std::setprecision(0) << std::setw(8) << r.sim_time
+            << std::setprecision(2) << std::setw(9) << r.distance / 1000.0 << std::setw(11)
+            << r.map_points << std::setw(10) << r.map_voxels << std::setw(11) << r.max_map_points
+            << std::setw(9) << r.patches << std::setprecision(1) << std::setw(9) << r.rss_mb
+            << std::setprecision(2) << std::setw(10) << r.ape_rmse << std::setw(10)
+            << r.ape_posyaw_rmse << std::setprecision(3);
+  if (r.tilt_max_deg >= 0) {
+    std::cout << std::setw(10) << r.tilt_max_deg;
+  } else {
+    std::cout << std::setw(10) << "-";  // no pose past --tilt-after yet
   }
+  std::cout << std::showpos << std::setprecision(2) << std::setw(9) << r.dz_m << std::noshowpos
+            << std::setw(8) << r.posed << std::setprecision(0) << std::setw(9) << r.wall_s << "\n"
+            << std::flush;
+}
 
+void PrintSummary(const ppf::tools::EnduranceReport& rep, const ppf::Config& config,
+                  const ppf::tools::EnduranceOptions& opts) {
   const double growth_pct =
       rep.max_map_first_half > 0
           ? 100.0 * (static_cast<double>(rep.max_map_second_half) / rep.max_map_first_half - 1.0)
@@ -210,5 +223,20 @@ int main(int argc, char** argv) {
   }
   std::cout << std::setprecision(0) << "wall time " << rep.wall_s << " s (simulator "
             << rep.sim_wall_s << " s)\n";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Cli cli = ParseArgs(argc, argv);
+  const ppf::Config config = LoadConfig(&cli);
+  PrintHeader(cli, config);
+  ppf::tools::EnduranceReport rep;
+  try {
+    rep = ppf::tools::RunEndurance(cli.opts, config, PrintRow);
+  } catch (const std::exception& e) {
+    Fail(e.what());
+  }
+  PrintSummary(rep, config, cli.opts);
   return 0;
 }

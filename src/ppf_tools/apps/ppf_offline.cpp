@@ -208,11 +208,8 @@ class ProgressBar {
   std::chrono::steady_clock::time_point last_{};
 };
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  const Args args = ParseArgs(argc, argv);
-
+// The --config files in order (warnings to stderr), then the command line's overrides.
+ppf::Config LoadConfig(const Args& args) {
   ppf::Config config;
   for (const auto& file : args.configs) {
     const auto report = ppf::LoadConfigYaml(file, &config);
@@ -226,6 +223,64 @@ int main(int argc, char** argv) {
   config.log = [](ppf::LogLevel level, const std::string& msg) {
     if (level >= ppf::LogLevel::kInfo) std::cerr << "\nppf_offline: " << msg << "\n";
   };
+  return config;
+}
+
+// --stats: CSV, or JSON for a .json file name.
+void WriteStats(const std::string& file, const std::vector<ppf::ScanResult>& results) {
+  std::ofstream os(file);
+  if (!os) Fail("cannot write " + file);
+  const bool json = file.size() > 5 && file.substr(file.size() - 5) == ".json";
+  if (json) {
+    ppf::tools::WriteStatsJson(os, results);
+  } else {
+    ppf::tools::WriteStatsCsvHeader(os);
+    for (const auto& r : results) ppf::tools::WriteStatsCsvRow(os, r);
+  }
+}
+
+// --planes: the skeleton-plane window after every scan, one row per plane.
+void WritePlanes(const std::string& file, const std::vector<ppf::ScanResult>& results) {
+  std::ofstream os(file);
+  if (!os) Fail("cannot write " + file);
+  os << "stamp,track_id,age,hits,missed_scans,nx,ny,nz,d,cx,cy,cz,inliers\n";
+  os << std::setprecision(9);
+  for (const auto& r : results) {
+    for (const auto& sp : r.skeleton_planes) {
+      os << std::fixed << std::setprecision(6) << r.stamp_s << std::defaultfloat
+         << std::setprecision(9) << "," << sp.track_id << "," << sp.age << "," << sp.hits << ","
+         << sp.missed_scans << "," << sp.plane.n.x() << "," << sp.plane.n.y() << ","
+         << sp.plane.n.z() << "," << sp.plane.d << "," << sp.centroid.x() << ","
+         << sp.centroid.y() << "," << sp.centroid.z() << "," << sp.num_inliers << "\n";
+    }
+  }
+}
+
+// The per-run summary on stdout, and every scan that reset or was rejected.
+void PrintRunSummary(const Args& args, const ppf::Config& config,
+                     const ppf::tools::OfflineRun& run) {
+  const auto summary = ppf::tools::Summarize(run.results, run.wall_s);
+  ppf::tools::PrintSummary(
+      std::cout, summary,
+      std::string("ppf_offline (") + (config.mode == ppf::Mode::kPpf ? "ppf" : "knn") +
+          (run.lidar_only ? ", LiDAR-only" : "") + "): " + std::to_string(run.trajectory.size()) +
+          " poses -> " + args.out);
+  if (run.source.malformed > 0) {
+    std::cout << "  skipped malformed messages: " << run.source.malformed << "\n";
+  }
+  for (const auto& r : run.results) {
+    if (r.status == ppf::Status::kReset || r.status == ppf::Status::kRejected) {
+      std::cout << "  scan " << std::fixed << r.stamp_s << ": " << ppf::StatusName(r.status)
+                << ": " << r.reason << "\n";
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = ParseArgs(argc, argv);
+  const ppf::Config config = LoadConfig(args);
 
   ProgressBar progress(!args.quiet);
   ppf::tools::OfflineOptions options;
@@ -269,57 +324,13 @@ int main(int argc, char** argv) {
     Fail(e.what());
   }
   progress.Finish();
-  const auto& results = run.results;
-  const auto& trajectory = run.trajectory;
-  const auto& source_stats = run.source;
-  const double wall_s = run.wall_s;
 
-  const bool ok = args.format == "tum" ? ppf::WriteTum(args.out, trajectory)
-                                       : ppf::WriteKitti(args.out, trajectory);
+  const bool ok = args.format == "tum" ? ppf::WriteTum(args.out, run.trajectory)
+                                       : ppf::WriteKitti(args.out, run.trajectory);
   if (!ok) Fail("cannot write " + args.out);
-  if (!args.stats.empty()) {
-    std::ofstream os(args.stats);
-    if (!os) Fail("cannot write " + args.stats);
-    const bool json = args.stats.size() > 5 && args.stats.substr(args.stats.size() - 5) == ".json";
-    if (json) {
-      ppf::tools::WriteStatsJson(os, results);
-    } else {
-      ppf::tools::WriteStatsCsvHeader(os);
-      for (const auto& r : results) ppf::tools::WriteStatsCsvRow(os, r);
-    }
-  }
-  if (!args.planes.empty()) {
-    std::ofstream os(args.planes);
-    if (!os) Fail("cannot write " + args.planes);
-    os << "stamp,track_id,age,hits,missed_scans,nx,ny,nz,d,cx,cy,cz,inliers\n";
-    os << std::setprecision(9);
-    for (const auto& r : results) {
-      for (const auto& sp : r.skeleton_planes) {
-        os << std::fixed << std::setprecision(6) << r.stamp_s << std::defaultfloat
-           << std::setprecision(9) << "," << sp.track_id << "," << sp.age << "," << sp.hits << ","
-           << sp.missed_scans << "," << sp.plane.n.x() << "," << sp.plane.n.y() << ","
-           << sp.plane.n.z() << "," << sp.plane.d << "," << sp.centroid.x() << ","
-           << sp.centroid.y() << "," << sp.centroid.z() << "," << sp.num_inliers << "\n";
-      }
-    }
-  }
-  if (!args.quiet) {
-    const auto summary = ppf::tools::Summarize(results, wall_s);
-    ppf::tools::PrintSummary(
-        std::cout, summary,
-        std::string("ppf_offline (") + (config.mode == ppf::Mode::kPpf ? "ppf" : "knn") +
-            (run.lidar_only ? ", LiDAR-only" : "") + "): " + std::to_string(trajectory.size()) +
-            " poses -> " + args.out);
-    if (source_stats.malformed > 0) {
-      std::cout << "  skipped malformed messages: " << source_stats.malformed << "\n";
-    }
-    for (const auto& r : results) {
-      if (r.status == ppf::Status::kReset || r.status == ppf::Status::kRejected) {
-        std::cout << "  scan " << std::fixed << r.stamp_s << ": " << ppf::StatusName(r.status)
-                  << ": " << r.reason << "\n";
-      }
-    }
-  }
+  if (!args.stats.empty()) WriteStats(args.stats, run.results);
+  if (!args.planes.empty()) WritePlanes(args.planes, run.results);
+  if (!args.quiet) PrintRunSummary(args, config, run);
   if (!dump_error.empty()) Fail("--dump-scan: " + dump_error);
-  return trajectory.empty() ? 2 : 0;
+  return run.trajectory.empty() ? 2 : 0;
 }

@@ -4,7 +4,6 @@
 // static-start bound of the accuracy study, 0.5 % of the path, over the whole run. Before the
 // moving-start initialization the IMU never showed rest and no scan got a pose.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -22,13 +21,7 @@
 #include "ppf_tools/offline_runner.hpp"
 #include "ppf_tools/study.hpp"
 #include "ppf_trajectory/evaluation.hpp"
-
-#ifndef PPF_SIM_EXE
-#define PPF_SIM_EXE "ppf_sim"
-#endif
-#ifndef PPF_CONFIG_DIR
-#define PPF_CONFIG_DIR "config"
-#endif
+#include "sim_sequence.hpp"
 
 namespace fs = std::filesystem;
 
@@ -44,36 +37,16 @@ struct Case {
 
 std::ostream& operator<<(std::ostream& os, const Case& c) { return os << c.name; }
 
-std::string Generate(const Case& c) {
-  std::string n = c.sim_args + "_" + std::to_string(static_cast<int>(c.duration));
-  for (char& ch : n) {
-    if (ch == ' ' || ch == '-') ch = '_';
-  }
-  const fs::path dir = fs::path(PPF_TEST_WORKDIR) / n;
-  const bool ok = ppf::tools::GenerateSequenceOnce(dir.string(), [&](const std::string& out) {
-    std::ostringstream cmd;
-    cmd << PPF_SIM_EXE << " " << c.sim_args << " --moving-start --duration " << c.duration
-        << " --seed 1 --storage mcap --out '" << out << "' > '" << dir.string() << "." << ::getpid()
-        << ".log' 2>&1";
-    return std::system(cmd.str().c_str()) == 0;
-  });
-  EXPECT_TRUE(ok) << "ppf_sim failed, see " << dir.string() << ".<pid>.log";
-  return dir.string();
-}
-
 class MovingStart : public ::testing::TestWithParam<Case> {};
 
 TEST_P(MovingStart, OdometryWithin3sAndGravityRightFromTheStart) {
   const Case& c = GetParam();
-  const std::string bag = Generate(c);
+  const std::string bag =
+      ppf::tools::test::GenerateSimSequence(c.sim_args, c.duration, " --moving-start");
   ASSERT_TRUE(fs::exists(fs::path(bag) / "groundtruth.tum"));
 
   ppf::Config config;
-  const auto report =
-      ppf::LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/" + c.lidar + ".yaml", &config);
-  ASSERT_TRUE(report.ok) << report.error;
-  const auto calib = ppf::LoadConfigYaml(bag + "/calibration.yaml", &config);
-  ASSERT_TRUE(calib.ok) << calib.error;
+  ASSERT_TRUE(ppf::tools::test::LoadPresetAndCalibration(c.lidar, bag, &config));
   config.mode = c.mode;
   std::string moving_log;
   config.log = [&moving_log](ppf::LogLevel level, const std::string& msg) {
@@ -264,8 +237,7 @@ TEST(MovingStartKitti, ImportedDriveRunsThroughTheOfflineLoop) {
   for (const ppf::Mode mode : {ppf::Mode::kKnn, ppf::Mode::kPpf}) {
     SCOPED_TRACE(mode == ppf::Mode::kKnn ? "knn" : "ppf");
     ppf::Config config;
-    ASSERT_TRUE(ppf::LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/hdl64.yaml", &config).ok);
-    ASSERT_TRUE(ppf::LoadConfigYaml((bag / "calibration.yaml").string(), &config).ok);
+    ASSERT_TRUE(ppf::tools::test::LoadPresetAndCalibration("hdl64", bag.string(), &config));
     config.mode = mode;
     const auto run = ppf::tools::RunOffline(bag.string(), config);
     ASSERT_FALSE(run.results.empty());

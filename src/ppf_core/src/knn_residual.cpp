@@ -49,8 +49,10 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
   if (frame_ == nullptr || frame_->map == nullptr || frame_->map->size() == 0) return;
   const VoxelMap& map = *frame_->map;
   const long n = static_cast<long>(indices_.size());
-  std::vector<PointPlaneRow> tmp(indices_.size());
-  std::vector<char> ok(indices_.size(), 0);
+  std::vector<PointPlaneRow>& tmp = tmp_;
+  std::vector<char>& ok = ok_;
+  tmp.resize(indices_.size());
+  ok.assign(indices_.size(), 0);
   const size_t k = static_cast<size_t>(std::max(3, options_.k));
 #ifdef _OPENMP
   const int threads = options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();

@@ -45,6 +45,9 @@ class KnnResidualProvider : public ResidualProvider {
   KnnOptions options_;
   const ScanFrame* frame_ = nullptr;
   std::vector<size_t> indices_;  // kScattered points of the frame
+  // Per-call buffers kept between the iterations and scans: one slot per indexed point.
+  std::vector<PointPlaneRow> tmp_;
+  std::vector<char> ok_;
 };
 
 }  // namespace ppf

@@ -62,30 +62,6 @@ int CountInliersSoa(const SoaPoints& p, const Hypothesis& h, float delta) {
   return count;
 }
 
-// CountInliersSoa, except that it stops and returns -2 as soon as the count can no longer exceed
-// `floor` (every point left would have to be an inlier): such a hypothesis cannot become the best,
-// and its exact count is never used. Counts in blocks so the inner loop still vectorises.
-int CountInliersAbove(const SoaPoints& p, const Hypothesis& h, float delta, long floor) {
-  constexpr size_t kBlock = 256;
-  const float nx = h.n.x(), ny = h.n.y(), nz = h.n.z(), d = h.d;
-  const float* x = p.x.data();
-  const float* y = p.y.data();
-  const float* z = p.z.data();
-  const size_t n = p.x.size();
-  int count = 0;
-  for (size_t begin = 0; begin < n; begin += kBlock) {
-    if (static_cast<long>(count) + static_cast<long>(n - begin) <= floor) return -2;
-    const size_t end = std::min(n, begin + kBlock);
-    int block = 0;
-    for (size_t i = begin; i < end; ++i) {
-      const float dist = nx * x[i] + ny * y[i] + nz * z[i] + d;
-      block += (std::abs(dist) < delta) ? 1 : 0;
-    }
-    count += block;
-  }
-  return count;
-}
-
 }  // namespace
 
 int RansacIterationsNeeded(double inlier_ratio, double confidence, int max_iterations) {
@@ -159,10 +135,7 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
     if (filled == 0) break;
 
     // The reference is fixed during the batch, so the pre-test decisions do not depend on threads.
-    // So is the floor: a hypothesis that cannot beat the best before the batch cannot beat the
-    // best after any of its members either.
     const long reference = std::max<long>(best_count, min_inliers);
-    const long floor = best_count;
     const bool pretest = stride > 1 && reference * m >= kPretestMinExpected * static_cast<long>(n);
 #pragma omp parallel for schedule(static) if (static_cast <long>(n) * filled > kParallelWork)
     for (int b = 0; b < filled; ++b) {
@@ -173,12 +146,12 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
           continue;
         }
       }
-      batch_count[b] = CountInliersAbove(soa, batch[b], delta, floor);
+      batch_count[b] = CountInliersSoa(soa, batch[b], delta);
     }
 
     for (int b = 0; b < filled; ++b) {
       ++result.iterations;
-      if (batch_count[b] == -1) ++result.pretest_rejected;
+      if (batch_count[b] < 0) ++result.pretest_rejected;
       if (batch_count[b] > best_count) {
         best_count = batch_count[b];
         best = batch[b];

@@ -83,12 +83,6 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
   size_t mask = table_.size() - 1;
   int shift = 64 - __builtin_ctzll(table_.size());
   size_t valid = 0;
-  // Consecutive points of a spinning LiDAR (neighbouring firings) mostly share a voxel: the last
-  // voxel's key and accumulator skip the hash probe, whose slot loads miss the cache on a table
-  // sized for a whole 64-beam scan. Same accumulators in the same order: the output is unchanged.
-  bool have_last = false;
-  uint64_t last_key = 0;
-  uint32_t last_index = 0;
   for (size_t i = 0; i < in.size(); i += stride) {
     const TimedPoint& tp = in[i];
     if (!keep(tp)) continue;
@@ -96,25 +90,19 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
     const uint64_t key =
         PackKey(FloorToInt(tp.p.x() * inv), FloorToInt(tp.p.y() * inv), FloorToInt(tp.p.z() * inv),
                 static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
-    uint32_t index = last_index;
-    if (!have_last || key != last_key) {
-      size_t h = Mix(key) >> shift;
-      while (table_[h].generation == generation_ && table_[h].key != key) h = (h + 1) & mask;
-      Slot& slot = table_[h];
-      index = slot.index;
-      if (slot.generation != generation_) {
-        index = static_cast<uint32_t>(acc_.size());
-        slot = Slot{key, generation_, index};
-        acc_.emplace_back();
-        if (2 * acc_.size() > table_.size()) {
-          Reserve(acc_.size() * 2);  // moves slots, not indices
-          mask = table_.size() - 1;
-          shift = 64 - __builtin_ctzll(table_.size());
-        }
+    size_t h = Mix(key) >> shift;
+    while (table_[h].generation == generation_ && table_[h].key != key) h = (h + 1) & mask;
+    Slot& slot = table_[h];
+    uint32_t index = slot.index;
+    if (slot.generation != generation_) {
+      index = static_cast<uint32_t>(acc_.size());
+      slot = Slot{key, generation_, index};
+      acc_.emplace_back();
+      if (2 * acc_.size() > table_.size()) {
+        Reserve(acc_.size() * 2);  // moves slots, not indices
+        mask = table_.size() - 1;
+        shift = 64 - __builtin_ctzll(table_.size());
       }
-      have_last = true;
-      last_key = key;
-      last_index = index;
     }
     Accumulator& acc = acc_[index];
     acc.x += tp.p.x();

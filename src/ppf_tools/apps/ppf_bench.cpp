@@ -214,27 +214,40 @@ std::string Cell(double med, double p95) {
 }
 
 std::string Table(const std::vector<ModeRow>& rows) {
+  // Every column after the first starts with a space, so a wide value never runs into the next.
+  auto col = [](std::ostream& os, int width) -> std::ostream& {
+    return os << ' ' << std::setw(width - 1);
+  };
   std::ostringstream os;
-  os << std::left << std::setw(15) << "sequence" << std::setw(5) << "mode" << std::right
-     << std::setw(6) << "scans";
-  for (const char* h : kStageHeads) os << std::setw(13) << h;
-  os << std::setw(9) << "scans/s" << std::setw(9) << "RSS MB" << std::setw(9) << "read MB"
-     << std::setw(9) << "+MB" << std::setw(10) << "MIr/scan" << "\n";
+  os << std::left << std::setw(14) << "sequence";
+  col(os, 5) << "mode" << std::right;
+  col(os, 6) << "scans";
+  for (const char* h : kStageHeads) col(os, 14) << h;
+  col(os, 9) << "scans/s";
+  col(os, 9) << "RSS MB";
+  col(os, 9) << "read MB";
+  col(os, 9) << "+MB";
+  col(os, 10) << "MIr/scan";
+  os << "\n";
   for (const auto& r : rows) {
-    os << std::left << std::setw(15) << r.sequence << std::setw(5) << r.mode << std::right
-       << std::setw(6) << r.samples.with_pose;
+    os << std::left << std::setw(14) << r.sequence;
+    col(os, 5) << r.mode << std::right;
+    col(os, 6) << r.samples.with_pose;
     for (int k = 0; k < kNumStages; ++k) {
-      os << std::setw(13) << Cell(Median(r.samples.stage[k]), P95(r.samples.stage[k]));
+      col(os, 14) << Cell(Median(r.samples.stage[k]), P95(r.samples.stage[k]));
     }
     const double scans_per_s =
         r.samples.core_ms > 0 ? 1000.0 * static_cast<double>(r.samples.scans) / r.samples.core_ms
                               : 0.0;
-    os << std::fixed << std::setprecision(1) << std::setw(9) << scans_per_s << std::setw(9)
-       << r.rss_mb << std::setw(9) << r.read_rss_mb << std::setw(9) << (r.rss_mb - r.read_rss_mb);
+    os << std::fixed << std::setprecision(1);
+    col(os, 9) << scans_per_s;
+    col(os, 9) << r.rss_mb;
+    col(os, 9) << r.read_rss_mb;
+    col(os, 9) << (r.rss_mb - r.read_rss_mb);
     if (r.ir_per_scan >= 0) {
-      os << std::setprecision(2) << std::setw(10) << r.ir_per_scan / 1e6;
+      col(os, 10) << std::setprecision(2) << r.ir_per_scan / 1e6;
     } else {
-      os << std::setw(10) << "-";
+      col(os, 10) << "-";
     }
     os << "\n";
   }
@@ -317,7 +330,11 @@ int main(int argc, char** argv) {
   opts.config_dir = PPF_DEFAULT_CONFIG_DIR;
   opts.workdir = "out/bench";
   bool callgrind = false;
-  std::string ppf_offline = SelfDir() + "/ppf_offline";
+  // The read-only pass always uses the ppf_offline installed with this command (the bag reader is
+  // the same code in every build); --ppf-offline changes the one that runs the modes, e.g. an
+  // older build for a before/after table.
+  const std::string reader = SelfDir() + "/ppf_offline";
+  std::string ppf_offline = reader;
   auto own = [&](int argc_, char** argv_, int* i, std::string* error) {
     const std::string a = argv_[*i];
     if (a == "--callgrind") {
@@ -349,7 +366,8 @@ int main(int argc, char** argv) {
                  "Durations: 20 s, --short 5 s; threads: 2 unless --threads.\n\n"
               << ppf::tools::StudyOptionsHelp(kDefaultSequences)
               << "  --callgrind           also the Ir per scan column (slow: about 50x)\n"
-                 "  --ppf-offline PATH    the ppf_offline to run (default: next to ppf_bench)\n"
+                 "  --ppf-offline PATH    the ppf_offline that runs the modes (default: the one next\n"
+                 "                        to ppf_bench, which always does the read-only pass)\n"
                  "  -h, --help            this text\n";
     return 0;
   }
@@ -375,7 +393,7 @@ int main(int argc, char** argv) {
     const std::string stem = (runs / (seq.scene + "_" + seq.lidar)).string();
 
     std::cerr << "ppf_bench: " << seq.Name() << ": read only...\n";
-    const std::vector<std::string> read_args = {ppf_offline, "--bag", bag, "--read-only",
+    const std::vector<std::string> read_args = {reader, "--bag", bag, "--read-only",
                                                 "--quiet"};
     const auto read = RunChild(read_args, stem + "_read.log");
     if (read.exit_code != 0) Fail(Quote(read_args) + " failed (see " + stem + "_read.log)");

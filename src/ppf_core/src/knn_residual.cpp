@@ -1,5 +1,6 @@
 #include "ppf_core/knn_residual.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Eigenvalues>
@@ -42,6 +43,7 @@ void KnnResidualProvider::BeginScan(const ScanFrame& frame) {
       indices_.push_back(i);
     }
   }
+  fits_.assign(indices_.size(), CachedFit());
 }
 
 void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
@@ -49,9 +51,12 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
   if (frame_ == nullptr || frame_->map == nullptr || frame_->map->size() == 0) return;
   const VoxelMap& map = *frame_->map;
   const long n = static_cast<long>(indices_.size());
-  std::vector<PointPlaneRow> tmp(indices_.size());
-  std::vector<char> ok(indices_.size(), 0);
+  std::vector<PointPlaneRow>& tmp = tmp_;
+  std::vector<char>& ok = ok_;
+  tmp.resize(indices_.size());
+  ok.assign(indices_.size(), 0);
   const size_t k = static_cast<size_t>(std::max(3, options_.k));
+  const bool cache = k <= kMaxCachedK && fits_.size() == indices_.size();
 #ifdef _OPENMP
   const int threads = options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
 #endif
@@ -63,9 +68,26 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
       const Eigen::Vector3d p_l = frame_->points_lidar[indices_[static_cast<size_t>(j)]].cast<double>();
       const Eigen::Vector3d p_w = T_world_lidar * p_l;
       if (map.GetClosest(p_w.cast<float>(), k, options_.max_neighbor_distance, &nn) < k) continue;
-      Eigen::Vector3d normal;
-      double d;
-      if (!FitPlane(nn, options_.plane_threshold, &normal, &d, options_.min_plane_spread)) continue;
+      Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+      double d = 0.0;
+      CachedFit* fit = cache ? &fits_[static_cast<size_t>(j)] : nullptr;
+      if (fit != nullptr && fit->count == nn.size() &&
+          std::equal(nn.begin(), nn.end(), fit->nn)) {
+        if (!fit->ok) continue;
+        normal = fit->normal;
+        d = fit->d;
+      } else {
+        const bool ok_fit =
+            FitPlane(nn, options_.plane_threshold, &normal, &d, options_.min_plane_spread);
+        if (fit != nullptr) {
+          std::copy(nn.begin(), nn.end(), fit->nn);
+          fit->count = nn.size();
+          fit->ok = ok_fit;
+          fit->normal = normal;
+          fit->d = d;
+        }
+        if (!ok_fit) continue;
+      }
       const double r = normal.dot(p_w) + d;
       if (!(std::abs(r) < options_.max_residual)) continue;
       PointPlaneRow& row = tmp[static_cast<size_t>(j)];

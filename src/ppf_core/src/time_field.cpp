@@ -265,7 +265,8 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
     }
   };
 
-  std::vector<double> raw_t;
+  std::vector<double>& raw_t = raw_t_;
+  raw_t.clear();
   if (ft) {
     raw_t.resize(n);
     if (ft->type == FieldType::kFloat32) {
@@ -320,7 +321,36 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
     }
     out->points.push_back(tp);
   };
-  if (xyz_f32) {
+  if (xyz_f32 && (!fi || intensity_f32)) {
+    // Every field float32 (nearly every driver): one pass writing straight into the output, with
+    // the general path's values and validity test (a non-finite or > 1e30 coordinate fails
+    // |c| <= 1e30; the time is the same double).
+    out->points.resize(n);
+    TimedPoint* dst = out->points.data();
+    size_t kept = 0;
+    const uint32_t ox = fx->offset, oy = fy->offset, oz = fz->offset;
+    const uint32_t oi = fi ? fi->offset : 0;
+    const double* times = ft ? raw_t.data() : nullptr;
+    for_each_point([&](size_t i, const uint8_t* p) {
+      const double x = ReadFloat32(p + ox), y = ReadFloat32(p + oy), z = ReadFloat32(p + oz);
+      const double t = times ? base + times[i] * scale : cloud.stamp_s;
+      if (!(std::abs(x) <= 1e30 && std::abs(y) <= 1e30 && std::abs(z) <= 1e30) ||
+          !std::isfinite(t)) {
+        ++out->dropped_nan;
+        return;
+      }
+      TimedPoint& tp = dst[kept++];
+      tp.p = Eigen::Vector3f(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
+      tp.t = t;
+      if (fi) {
+        const double v = ReadFloat32(p + oi);
+        tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
+      } else {
+        tp.intensity = 0.f;
+      }
+    });
+    out->points.resize(kept);
+  } else if (xyz_f32) {
     for_each_point([&](size_t i, const uint8_t* p) {
       decode(i, p,
              Eigen::Vector3d(ReadFloat32(p + fx->offset), ReadFloat32(p + fy->offset),

@@ -45,6 +45,21 @@ class KnnResidualProvider : public ResidualProvider {
   KnnOptions options_;
   const ScanFrame* frame_ = nullptr;
   std::vector<size_t> indices_;  // kScattered points of the frame
+  // Per-call buffers kept between the iterations and scans: one slot per indexed point.
+  std::vector<PointPlaneRow> tmp_;
+  std::vector<char> ok_;
+  // The last plane fitted for each indexed point and the neighbours it was fitted to. Between the
+  // filter's iterations the pose moves little and most points find the same k neighbours: the
+  // same input gives the same plane, so the fit is reused instead of solved again.
+  static constexpr size_t kMaxCachedK = 8;
+  struct CachedFit {
+    Eigen::Vector3f nn[kMaxCachedK];
+    size_t count = 0;  // 0: nothing cached
+    bool ok = false;
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+    double d = 0.0;
+  };
+  std::vector<CachedFit> fits_;
 };
 
 }  // namespace ppf

@@ -92,6 +92,9 @@ class TimeFieldDecoder {
   TimeFieldOptions options_;
   LogCallback log_;
   TimeFieldInfo info_;
+  // Raw time values of the scan being decoded, kept between calls: a fresh buffer per scan is an
+  // allocation (and page faults) the size of the scan.
+  std::vector<double> raw_t_;
 };
 
 // Checks the layout of `cloud` (x/y/z present, offsets inside point_step, buffer size). Returns

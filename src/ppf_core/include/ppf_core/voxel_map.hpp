@@ -116,7 +116,19 @@ class VoxelMap {
       float best_d2[kMaxStackK];
       Point best[kMaxStackK];
       size_t n = 0;
+      // The query's position inside its voxel, in voxel units: a neighbour voxel's nearest face
+      // lies (1 - f) or f away along each axis where it differs.
+      const Eigen::Vector3d f = query.cast<double>() * inv_resolution_ -
+                                Eigen::Vector3d(c.x, c.y, c.z);
       for (const VoxelKey& o : offsets_) {
+        // A neighbour voxel that lies wholly beyond the search radius, or beyond the k-th best
+        // distance once k points are held, cannot change the result: its hash lookup (the cost of
+        // a query) is skipped. The bound is a lower bound with a margin for the rounding of the
+        // point distances and of the voxel keys, so no point it could hold is ever left out.
+        if (o.x != 0 || o.y != 0 || o.z != 0) {
+          const double limit = n == k ? std::min<double>(best_d2[k - 1], max_d2) : max_d2;
+          if (NeighbourLowerBound2(f, o) > limit * (1.0 + 1e-4)) continue;
+        }
         const auto it = index_.find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
         if (it == index_.end()) continue;
         for (const Point& p : it->second->points) {
@@ -184,6 +196,20 @@ class VoxelMap {
 
  private:
   static constexpr size_t kMaxStackK = 16;
+
+  // Squared distance from a query (at f in voxel units within its voxel) to the nearest point of
+  // the neighbour voxel at offset o, in metres squared, less a margin of 1e-4 voxel per axis.
+  double NeighbourLowerBound2(const Eigen::Vector3d& f, const VoxelKey& o) const {
+    constexpr double kMargin = 1e-4;
+    double sum = 0.0;
+    const int off[3] = {o.x, o.y, o.z};
+    for (int a = 0; a < 3; ++a) {
+      double gap = off[a] > 0 ? 1.0 - f[a] : (off[a] < 0 ? f[a] : 0.0);
+      gap = std::max(0.0, gap - kMargin);
+      sum += gap * gap;
+    }
+    return sum * options_.resolution * options_.resolution;
+  }
 
   struct Voxel {
     VoxelKey key;

@@ -2,10 +2,11 @@
 # Sanitizer stages of CI; scripts/test.sh runs them after the normal tests, each can run alone:
 #
 #   scripts/sanitize.sh asan   clang ASan+UBSan build of ppf_msgs_idl, ppf_msgs_cdr, ppf_trajectory,
-#                              ppf_core, ppf_bridge, ppf_bag, ppf_sim and ppf_fuzz (build-asan/,
-#                              install-asan/), then all their tests: unit tests, the core's
-#                              end-to-end test, the simulator's, the fuzz seed and regression
-#                              replays
+#                              ppf_core, ppf_bridge, ppf_bag, ppf_sim, ppf_fuzz and ppf_dds_node
+#                              (build-asan/, install-asan/), then all their tests: unit tests, the
+#                              core's end-to-end test, the simulator's, the fuzz seed and
+#                              regression replays, and the node's (node, replay, record, hostile
+#                              Cyclone peer, transport; not the real-time ones, see below)
 #   scripts/sanitize.sh tsan   clang TSan build of ppf_dds_node (build-tsan/, install-tsan/) on top
 #                              of the Release install, then its tests: node, replay, record,
 #                              transport, end-to-end, as-documented, Cyclone interop (not the
@@ -14,9 +15,18 @@
 # Why these subsets (2-core CI, 60 minutes in all): ppf_tools' tests drive the core through long
 # simulated runs (accuracy study, endurance) that take minutes in Release; under ASan they alone
 # would exceed the budget, and the code they exercise (core, bag, bridge, sim) is covered here by
-# its own tests. ppf_dds_node is not run under ASan: Fast DDS 2.9 itself trips ASan's
-# new-delete-type-mismatch check when any writer is deleted (RTPSWriter::~RTPSWriter, inside
-# libfastrtps), a check ASan cannot suppress per library; its threads are TSan's job below.
+# its own tests. The multi-host test needs network namespaces and a real-time HDL-64 rate that an
+# instrumented node cannot keep on 2 cores; it runs in the Release stage. So do, for the same
+# reason, the tests that assert real-time delivery without drops end to end (EndToEnd,
+# AsDocumented, Faults, ReplayRecordRos1): here the whole core is instrumented (under TSan it is
+# the Release build), and at load 7-9 an ASan node dropped 28 of 50 HDL-32 scans in AsDocumented
+# and exceeded EndToEnd's 300 MB bound (415 MB: ASan's quarantine and shadow). They run in the
+# Release and TSan stages.
+# ppf_dds_node's tests run with new_delete_type_mismatch=0: Fast DDS 2.9 itself trips that check
+# when any writer is deleted (RTPSWriter::~RTPSWriter, inside libfastrtps), and ASan cannot
+# suppress it per library. Every other ASan check, and LeakSanitizer at each process's exit, stays
+# on for the node, the replay, the recorder and their tests; our own new/delete pairs are checked
+# with that option on by the other packages' tests, which run the same core, bag and bridge code.
 # Under TSan only ppf_dds_node is instrumented: it owns every thread of the system (DDS listeners,
 # executor, recorder); the core is single-threaded apart from OpenMP, whose runtime is not
 # TSan-aware anyway. The libraries it links come from the Release install, uninstrumented: their
@@ -63,11 +73,12 @@ run_tests() {  # run_tests <build-base> <install-base> <packages...>
   log "testing $*"
   colcon --log-base "log/$kind" test --build-base "$bb" --install-base "$ib" \
     --parallel-workers 1 --packages-select "$@" \
-    --event-handlers console_cohesion- console_direct- >"log/sanitize_${kind}_test.log" 2>&1
+    --event-handlers console_cohesion- console_direct- >>"log/sanitize_${kind}_test.log" 2>&1
 }
 
 mkdir -p log
 rm -rf "build-$kind"/*/Testing  # a failed build must not leave an earlier run's results to count
+: >"log/sanitize_${kind}_test.log"
 case "$kind" in
   asan)
     # halt_on_error: the first report ends the process (ASan does by default; UBSan only with
@@ -75,11 +86,18 @@ case "$kind" in
     export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:strict_string_checks=1:check_initialization_order=1:detect_stack_use_after_return=1"
     export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1:suppressions=$SAN/ubsan.supp"
     export LSAN_OPTIONS="suppressions=$SAN/lsan.supp:print_suppressions=0"
-    build build-asan install-asan "$SAN/asan.cmake" --packages-up-to ppf_fuzz ppf_sim || exit 1
+    build build-asan install-asan "$SAN/asan.cmake" --packages-up-to ppf_fuzz ppf_sim ppf_dds_node ||
+      exit 1
     source_setup install-asan/setup.bash
     run_tests build-asan install-asan ppf_msgs_idl ppf_msgs_cdr ppf_trajectory ppf_core ppf_bridge \
       ppf_bag ppf_sim ppf_fuzz \
       --ctest-args --timeout 900
+    rc=$?
+    ASAN_OPTIONS="$ASAN_OPTIONS:new_delete_type_mismatch=0" \
+      run_tests build-asan install-asan ppf_dds_node \
+      --ctest-args -E "MultiHost|EndToEnd|AsDocumented|Faults|ReplayRecordRos1" --timeout 900 ||
+      rc=$?
+    exit $rc
     ;;
   tsan)
     [ -f install/setup.bash ] || { echo "tsan: build the Release workspace first (scripts/setup.sh)" >&2; exit 1; }

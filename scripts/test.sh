@@ -59,6 +59,19 @@ if [ "${PPF_SANITIZERS:-1}" != 0 ]; then
   else
     echo "FAIL $stage_seconds ci sanitize asan (build+run): see log/ci_sanitize_asan.log" >>"$stages"
   fi
+  # The 30-minute soak's short form (scripts/soak.sh): one minute of a simulated drive replayed at
+  # real time over DDS into the ASan node; LeakSanitizer at its exit fails the stage on any leak,
+  # and nothing may be lost. The quarantine is bounded so the RSS check stays meaningful.
+  if [ -x install-asan/ppf_dds_node/bin/ppf_node ] &&
+    stage "soak asan" log/ci_soak_asan.log env \
+      ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:new_delete_type_mismatch=0:quarantine_size_mb=16" \
+      LSAN_OPTIONS="suppressions=$ROOT/scripts/sanitizers/lsan.supp:print_suppressions=0" \
+      scripts/soak.sh --minutes 1 --node "$ROOT/install-asan/ppf_dds_node/bin/ppf_node" \
+      --out "$ROOT/log/soak_asan"; then
+    echo "PASS $stage_seconds ci soak asan (1 minute, LeakSanitizer)" >>"$stages"
+  else
+    echo "FAIL $stage_seconds ci soak asan (1 minute, LeakSanitizer): see log/ci_soak_asan.log" >>"$stages"
+  fi
   if stage "sanitize tsan" log/ci_sanitize_tsan.log scripts/sanitize.sh tsan; then
     echo "PASS $stage_seconds ci sanitize tsan (build+run)" >>"$stages"
   else

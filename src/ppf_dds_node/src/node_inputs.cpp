@@ -12,6 +12,7 @@
 #include "ppf_bridge/convert.hpp"
 #include "ppf_dds_node/dds_common.hpp"
 #include "ppf_dds_node/validating_type.hpp"
+#include "ppf_msgs_cdr/cdr.hpp"
 #include "ppf_msgs_cdr/time.hpp"
 
 namespace ppf::dds {
@@ -99,7 +100,15 @@ NodeInputs::NodeInputs(const NodeConfig& c, NodeStats* stats)
       pool_(std::make_shared<CloudPool>()),
       scan_queue_(static_cast<size_t>(c.scan_queue_capacity)),
       imu_queue_(static_cast<size_t>(c.imu_queue_capacity)),
-      cloud_type_(new ValidatingPubSubType<sensor_msgs::msg::PointCloud2>()),
+      // Size first, from the payload's header: a cloud declaring more points than the bound is
+      // refused before its data is decoded or copied.
+      cloud_type_(new ValidatingPubSubType<sensor_msgs::msg::PointCloud2>(
+          [max_points = static_cast<uint64_t>(c.max_cloud_points)](const uint8_t* data,
+                                                                    size_t size) {
+            uint64_t n = 0;
+            if (!msgs::PeekCloudPointCount(data, size, &n) || n <= max_points) return std::string();
+            return std::to_string(n);
+          })),
       imu_type_(new ValidatingPubSubType<sensor_msgs::msg::Imu>()),
       malformed_log_(c.malformed_log_interval_s),
       imu_malformed_log_(c.malformed_log_interval_s),
@@ -253,12 +262,9 @@ void NodeInputs::OnClouds(fdds::DataReader* reader) {
                                       "reader history overwritten)");
     }
     stats_->Add(&NodeSummary::scans_received);
-    // Size first: a cloud declaring more points than the bound is refused before anything
-    // looks at its data.
-    if (sample.valid && !CheckCloudSize(*buffer)) {
-      // Freed, not pooled: the buffer now has the refused cloud's capacity, which the pool would
-      // keep resident for good.
-      buffer.reset();
+    if (sample.refused) {  // by the type's size gate, undecoded: the buffer kept its capacity
+      ReportTooLarge(sample.error);
+      pool_->Return(std::move(buffer));
       continue;
     }
     std::string error;
@@ -299,15 +305,12 @@ void NodeInputs::OnClouds(fdds::DataReader* reader) {
   }
 }
 
-bool NodeInputs::CheckCloudSize(const sensor_msgs::msg::PointCloud2& m) {
-  const uint64_t n = static_cast<uint64_t>(m.width()) * m.height();
-  if (n <= static_cast<uint64_t>(config_.max_cloud_points)) return true;
+void NodeInputs::ReportTooLarge(const std::string& points) {
   stats_->Add(&NodeSummary::scans_too_large);
-  large_log_.Log(Level::kWarn, std::to_string(n) + "-point PointCloud2 on " +
+  large_log_.Log(Level::kWarn, points + "-point PointCloud2 on " +
                                    RosTopicToDds(config_.points_topic) +
                                    " exceeds queues.max_cloud_points " +
                                    std::to_string(config_.max_cloud_points) + ": skipped");
-  return false;
 }
 
 // Well-formed clouds the core cannot use. Refused here, before the scan queue: queued, they would

@@ -78,7 +78,7 @@ class NodeInputs {
 
   void OnClouds(eprosima::fastdds::dds::DataReader* reader);
   void OnImu(eprosima::fastdds::dds::DataReader* reader);
-  bool CheckCloudSize(const sensor_msgs::msg::PointCloud2& m);
+  void ReportTooLarge(const std::string& points);  // counted and logged, rate-limited
   bool CheckCloudUsable(const sensor_msgs::msg::PointCloud2& m, double stamp);
 
   const NodeConfig config_;

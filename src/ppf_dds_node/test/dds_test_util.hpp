@@ -52,6 +52,21 @@ inline constexpr bool kUnderTsan = true;
 #else
 inline constexpr bool kUnderTsan = false;
 #endif
+
+// ... with AddressSanitizer (scripts/sanitize.sh asan). Its allocator holds freed memory in a
+// quarantine (256 MB by default) and its shadow grows with what is touched: a process's memory
+// figures then say nothing about the node's own (the Release stage checks them).
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kUnderAsan = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+inline constexpr bool kUnderAsan = true;
+#else
+inline constexpr bool kUnderAsan = false;
+#endif
+#else
+inline constexpr bool kUnderAsan = false;
+#endif
 #else
 inline constexpr bool kUnderTsan = false;
 #endif

@@ -4,7 +4,10 @@
 // logs it (a generated type would make Fast DDS drop it without telling us).
 #pragma once
 
+#include <cstdint>
+#include <functional>
 #include <string>
+#include <utility>
 
 #include <fastdds/rtps/common/SerializedPayload.h>
 #include <fastdds/dds/topic/TopicDataType.hpp>
@@ -20,12 +23,19 @@ struct Validated {
   bool valid = false;
   std::string error;
   size_t payload_size = 0;
+  // The type's gate refused the payload before decoding (error says why): msg is untouched.
+  bool refused = false;
 };
 
 template <typename MsgT>
 class ValidatingPubSubType : public eprosima::fastdds::dds::TopicDataType {
  public:
-  ValidatingPubSubType() {
+  // Sees the raw payload (encapsulation header included) before it is decoded; a non-empty
+  // reason refuses the sample undecoded (Validated::refused), so e.g. an oversized cloud costs no
+  // copy of its data. Runs on Fast DDS's receive thread: it must not block or take our locks.
+  using Gate = std::function<std::string(const uint8_t* data, size_t size)>;
+
+  explicit ValidatingPubSubType(Gate gate = nullptr) : gate_(std::move(gate)) {
     setName(msgs::MsgTraits<MsgT>::kDdsName);
     m_typeSize = 4096;  // initial buffer only; histories grow on demand
     m_isGetKeyDefined = false;
@@ -40,6 +50,16 @@ class ValidatingPubSubType : public eprosima::fastdds::dds::TopicDataType {
     auto* out = static_cast<Validated<MsgT>*>(data);
     out->payload_size = payload->length;
     out->error.clear();
+    out->refused = false;
+    if (gate_) {
+      std::string reason = gate_(payload->data, payload->length);
+      if (!reason.empty()) {
+        out->refused = true;
+        out->valid = false;
+        out->error = std::move(reason);
+        return true;
+      }
+    }
     out->valid = msgs::DecodeCdrPayload(payload, &out->msg, &out->error);
     return true;  // delivered either way; the listener decides
   }
@@ -52,6 +72,9 @@ class ValidatingPubSubType : public eprosima::fastdds::dds::TopicDataType {
   void* createData() override { return new Validated<MsgT>(); }
   void deleteData(void* data) override { delete static_cast<Validated<MsgT>*>(data); }
   bool getKey(void*, eprosima::fastrtps::rtps::InstanceHandle_t*, bool) override { return false; }
+
+ private:
+  Gate gate_;
 };
 
 }  // namespace ppf::dds

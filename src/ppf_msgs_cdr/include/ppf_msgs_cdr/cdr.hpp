@@ -44,4 +44,10 @@ bool DecodeCdr(const std::vector<uint8_t>& payload, MsgT* out, std::string* erro
   return DecodeCdr(payload.data(), payload.size(), out, error);
 }
 
+// The point count (height x width) a sensor_msgs/PointCloud2 payload declares, read from its first
+// bytes without decoding it, so a receiver can refuse an oversized cloud before copying its data.
+// False if the payload is too short for its header or its encapsulation is unknown; the full
+// decode then says what is wrong.
+bool PeekCloudPointCount(const uint8_t* data, size_t size, uint64_t* points);
+
 }  // namespace ppf::msgs

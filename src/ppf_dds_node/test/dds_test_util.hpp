@@ -43,33 +43,27 @@ inline const char* const kProfile = "ppf_test_loopback";
 // UDP only: for tests that SIGKILL a participant (see the profile's comment).
 inline const char* const kProfileUdp = "ppf_test_loopback_udp";
 
-// This test binary (and the tools it starts, scripts/sanitize.sh) built with ThreadSanitizer.
-#if defined(__SANITIZE_THREAD__)
-inline constexpr bool kUnderTsan = true;
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer)
+// This test binary (and the tools it starts, scripts/sanitize.sh) built with ThreadSanitizer or
+// AddressSanitizer. gcc defines __SANITIZE_*__, clang answers __has_feature.
+#if defined(__has_feature)
+#define PPF_TEST_HAS_FEATURE(x) __has_feature(x)
+#else
+#define PPF_TEST_HAS_FEATURE(x) 0
+#endif
+#if defined(__SANITIZE_THREAD__) || PPF_TEST_HAS_FEATURE(thread_sanitizer)
 inline constexpr bool kUnderTsan = true;
 #else
 inline constexpr bool kUnderTsan = false;
 #endif
-
-// ... with AddressSanitizer (scripts/sanitize.sh asan). Its allocator holds freed memory in a
-// quarantine (256 MB by default) and its shadow grows with what is touched: a process's memory
-// figures then say nothing about the node's own (the Release stage checks them).
-#if defined(__SANITIZE_ADDRESS__)
-inline constexpr bool kUnderAsan = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
+// ASan's allocator holds freed memory in a quarantine (256 MB by default) and its shadow grows with
+// what is touched: a process's memory figures then say nothing about the node's own (the Release
+// stage checks them).
+#if defined(__SANITIZE_ADDRESS__) || PPF_TEST_HAS_FEATURE(address_sanitizer)
 inline constexpr bool kUnderAsan = true;
 #else
 inline constexpr bool kUnderAsan = false;
 #endif
-#else
-inline constexpr bool kUnderAsan = false;
-#endif
-#else
-inline constexpr bool kUnderTsan = false;
-#endif
+#undef PPF_TEST_HAS_FEATURE
 
 // A fresh directory /tmp/<prefix>_XXXXXX (mkdtemp); "/tmp" if it cannot be made.
 inline std::string TempDir(const std::string& prefix) {

@@ -40,7 +40,8 @@ void LioPpf::Impl::PredictConstantVelocity(double t_end, PoseTrace* trace) {
   state.p_world_imu = T.translation();
   state.v_world = motion.velocity_world();
   state.stamp_s = t_end;
-  gyro_at_scan_end = motion.angular_velocity();
+  // Raw like an IMU sample (FillState removes the bias): non-zero only in an IMU loss.
+  gyro_at_scan_end = motion.angular_velocity() + state.gyro_bias;
   SetLidarOnlyPrior();
 }
 

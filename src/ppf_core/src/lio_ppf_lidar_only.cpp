@@ -46,8 +46,8 @@ void LioPpf::Impl::PredictConstantVelocity(double t_end, PoseTrace* trace) {
 }
 
 void LioPpf::Impl::SetLidarOnlyPrior() {
-  const double rot = config.lidar_only.prior_rot_std;
-  const double pos = config.lidar_only.prior_pos_std;
+  const double rot = fallback_scan ? config.imu_loss_prior_rot_std : config.lidar_only.prior_rot_std;
+  const double pos = fallback_scan ? config.imu_loss_prior_pos_std : config.lidar_only.prior_pos_std;
   state.P = StateCov::Identity() * 1e-6;
   state.P.block<3, 3>(kRot, kRot).diagonal().setConstant(rot * rot);
   state.P.block<3, 3>(kPos, kPos).diagonal().setConstant(pos * pos);

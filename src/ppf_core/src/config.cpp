@@ -134,6 +134,9 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("imu.gravity_dir_noise", &c->noise.gravity_dir);
   t.Add("imu.max_gap", &c->max_imu_gap_s);
   t.Add("imu.max_gap_bridge", &c->max_imu_gap_bridge_s);
+  t.Add("imu.loss_timeout", &c->imu_loss_timeout_s);
+  t.Add("imu.loss_prior_pos_std", &c->imu_loss_prior_pos_std);
+  t.Add("imu.loss_prior_rot_std", &c->imu_loss_prior_rot_std);
   t.Add("imu.gap_acc_std", &c->gap_acc_std);
   t.Add("imu.gap_gyro_std", &c->gap_gyro_std);
 
@@ -260,6 +263,11 @@ std::vector<std::string> ValidateConfig(Config* c) {
       &c->init.moving_start_max_gravity_error, 0.5);
   fix(!(c->max_imu_gap_s > 0.0), "imu.max_gap", &c->max_imu_gap_s, 0.5);
   fix(!(c->max_imu_gap_bridge_s >= 0.0), "imu.max_gap_bridge", &c->max_imu_gap_bridge_s, 0.0);
+  fix(!(c->imu_loss_timeout_s > 0.0), "imu.loss_timeout", &c->imu_loss_timeout_s, 0.25);
+  fix(!(c->imu_loss_prior_pos_std > 0.0), "imu.loss_prior_pos_std", &c->imu_loss_prior_pos_std,
+      0.3);
+  fix(!(c->imu_loss_prior_rot_std > 0.0), "imu.loss_prior_rot_std", &c->imu_loss_prior_rot_std,
+      0.1);
   fix(!(c->gap_acc_std >= 0.0), "imu.gap_acc_std", &c->gap_acc_std, 1.0);
   fix(!(c->gap_gyro_std >= 0.0), "imu.gap_gyro_std", &c->gap_gyro_std, 0.05);
   fix(!(c->noise.gyro >= 0.0), "imu.gyro_noise", &c->noise.gyro, 0.01);

@@ -59,6 +59,10 @@ void LioPpf::Impl::ResetFilter(const std::string& reason) {
   state = NavState();
   last_scan_end = -std::numeric_limits<double>::infinity();
   bridged_gaps.clear();
+  imu_lost = false;
+  fallback_scan = false;
+  fallback_seeded = false;
+  imu_back = false;
   if (splitter) splitter->Reset();
   for (auto& p : extra) p->Reset();
   knn->Reset();
@@ -102,6 +106,16 @@ void LioPpf::Impl::AddImu(const ImuSample& s) {
     std::ostringstream os;
     os << "IMU gap of " << s.stamp_s - last_imu_stamp << " s";
     RestartMovingInit(os.str());
+  } else if (imu_lost && !imu_back) {
+    // The fallback's scans were registered LiDAR-only meanwhile: no bridge, LIO resumes
+    // (re-anchored) with the first scan these samples cover.
+    imu_back = true;
+    imu_back_stamp_s = s.stamp_s;
+    imu_loss_gap_s = s.stamp_s - last_imu_stamp;
+    std::ostringstream os;
+    os << "IMU gap of " << imu_loss_gap_s << " s: IMU back, LIO resumes at the next scan it covers"
+       << " (re-anchored at the LiDAR-only pose, map, gravity and biases kept)";
+    Log(LogLevel::kInfo, os.str());
   } else if (initialized && s.stamp_s - last_imu_stamp > config.max_imu_gap_s) {
     const double gap = s.stamp_s - last_imu_stamp;
     std::ostringstream os;
@@ -112,8 +126,14 @@ void LioPpf::Impl::AddImu(const ImuSample& s) {
       bridged_gaps.push_back({last_imu_stamp, gap});
       Log(LogLevel::kWarn, os.str() + ": bridged (state and map kept, uncertainty widened)");
     } else {
+      // Both streams were silent (no scan needed the fallback): integrating across the gap would
+      // run away, and a reset would need a static start a moving robot never gives. The scans
+      // before these samples are registered LiDAR-only, then LIO re-anchors.
       os << " and > max_imu_gap_bridge " << config.max_imu_gap_bridge_s << " s";
-      ResetFilter(os.str());
+      EnterImuLoss(os.str());
+      imu_back = true;
+      imu_back_stamp_s = s.stamp_s;
+      imu_loss_gap_s = gap;
     }
   }
   last_imu_stamp = s.stamp_s;
@@ -176,7 +196,10 @@ std::vector<ScanResult> LioPpf::Impl::Process(bool flush) {
     // Wait for the IMU to cover the scan, unless the IMU stream has stalled: scans newer than
     // the last IMU sample by more than max_imu_gap_s are not held back forever.
     const bool imu_stalled = scans.back().stamp_s - last_imu_stamp > config.max_imu_gap_s;
-    if (!q.rejected && !flush && !imu_stalled && last_imu_stamp < q.scan.t_end) break;
+    fallback_scan = !q.rejected && NeedsFallback(q.scan, imu_stalled || flush);
+    if (!q.rejected && !flush && !imu_stalled && !fallback_scan && last_imu_stamp < q.scan.t_end) {
+      break;
+    }
     // Reset notices belong before the first scan processed after the reset.
     for (ScanResult& r : pending) out.push_back(std::move(r));
     pending.clear();
@@ -194,6 +217,30 @@ std::vector<ScanResult> LioPpf::Impl::Process(bool flush) {
     pending.clear();
   }
   return out;
+}
+
+// IMU loss: true if this scan is registered LiDAR-only. LIO running, a scan ending more than
+// imu_loss_timeout_s after the last IMU sample declares the loss (only when the stream has
+// stalled or at flush: otherwise the scan waits for samples still on their way); the loss lasts
+// until IMU samples are back from the start of the scan on.
+bool LioPpf::Impl::NeedsFallback(const DecodedScan& scan, bool may_declare) {
+  if (!initialized || !map_initialized || lidar_only || moving_init) return false;
+  if (imu_lost) return !(imu_back && imu_back_stamp_s <= state.stamp_s + kResumeSlackS);
+  if (!may_declare || scan.t_end - last_imu_stamp <= config.imu_loss_timeout_s) return false;
+  std::ostringstream os;
+  os << "no IMU sample for " << scan.t_end - last_imu_stamp << " s > imu.loss_timeout "
+     << config.imu_loss_timeout_s << " s";
+  EnterImuLoss(os.str());
+  return true;
+}
+
+void LioPpf::Impl::EnterImuLoss(const std::string& why) {
+  imu_lost = true;
+  imu_back = false;
+  fallback_seeded = false;
+  Log(LogLevel::kWarn, "IMU lost (" + why +
+                           "): continuing LiDAR-only (constant-velocity prediction; map, gravity "
+                           "and biases kept) until IMU samples are back");
 }
 
 // kAuto: decides when the input says whether there is an IMU. Returns false while undecided

@@ -62,6 +62,8 @@ struct LioPpf::Impl {
   ScanResult Rejected(const QueuedScan& q) const;
   std::vector<ScanResult> Process(bool flush);
   bool DecideImuMode(bool flush);
+  bool NeedsFallback(const DecodedScan& scan, bool may_declare);
+  void EnterImuLoss(const std::string& why);
 
   // lio_ppf_process.cpp: one scan.
   ScanResult ProcessOne(QueuedScan& q);
@@ -80,6 +82,8 @@ struct LioPpf::Impl {
   void FillState(ScanResult* r) const;
   void WidenForGap(double gap_s);
   void InsertScattered(const ScanFrame& f, const Eigen::Isometry3d& T_world_lidar, ScanResult* r);
+  void SeedFallback();
+  void ResumeLio(ScanResult* r);
 
   // lio_ppf_init.cpp: the filter's start.
   void StartFilter();
@@ -130,6 +134,19 @@ struct LioPpf::Impl {
   ConstantVelocityModel motion;    // LiDAR-only prediction (IMU frame poses)
   std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
   size_t ignored_imu = 0;
+  // IMU loss (lio_ppf.hpp): LIO running, but scans are registered LiDAR-only until IMU samples
+  // are back and cover the next scan; then propagation re-anchors at the last LiDAR-only pose.
+  bool imu_lost = false;
+  bool fallback_scan = false;     // the scan in ProcessOne is one of those
+  bool fallback_seeded = false;   // the motion model holds the filter's pose and twist
+  bool imu_back = false;          // samples arrived after the loss, the first at imu_back_stamp_s
+  double imu_back_stamp_s = 0.0;
+  double imu_loss_gap_s = 0.0;    // the gap in the IMU stream those samples ended
+  double fallback_dt = 0.0;       // interval of the last LiDAR-only scan (velocity at resume)
+  StateCov P_before_loss = StateCov::Identity();  // biases' and gravity's, kept for the resume
+  // A scan may resume LIO if the first IMU sample back is at most this much after its start: the
+  // propagation holds that sample for the bit before it (a few IMU periods).
+  static constexpr double kResumeSlackS = 0.02;
   double map_init_stamp_s = 0.0;
   double last_imu_stamp = -std::numeric_limits<double>::infinity();
   double last_scan_end = -std::numeric_limits<double>::infinity();

@@ -40,13 +40,14 @@ void LioPpf::Impl::PredictConstantVelocity(double t_end, PoseTrace* trace) {
   state.p_world_imu = T.translation();
   state.v_world = motion.velocity_world();
   state.stamp_s = t_end;
-  gyro_at_scan_end = motion.angular_velocity();
+  // Raw like an IMU sample (FillState removes the bias): non-zero only in an IMU loss.
+  gyro_at_scan_end = motion.angular_velocity() + state.gyro_bias;
   SetLidarOnlyPrior();
 }
 
 void LioPpf::Impl::SetLidarOnlyPrior() {
-  const double rot = config.lidar_only.prior_rot_std;
-  const double pos = config.lidar_only.prior_pos_std;
+  const double rot = fallback_scan ? config.imu_loss_prior_rot_std : config.lidar_only.prior_rot_std;
+  const double pos = fallback_scan ? config.imu_loss_prior_pos_std : config.lidar_only.prior_pos_std;
   state.P = StateCov::Identity() * 1e-6;
   state.P.block<3, 3>(kRot, kRot).diagonal().setConstant(rot * rot);
   state.P.block<3, 3>(kPos, kPos).diagonal().setConstant(pos * pos);

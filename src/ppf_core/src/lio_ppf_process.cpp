@@ -21,8 +21,16 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   r.dropped_nan = scan.dropped_nan;
   r.map_size = map.size();
   // The moving-start initialization registers its scans as LiDAR-only does.
-  const bool lidar = lidar_only || moving_init;
+  const bool lidar = lidar_only || moving_init || fallback_scan;
   if (!AcceptScan(scan, lidar, &r)) return r;
+  if (fallback_scan) {
+    SeedFallback();
+    fallback_dt = scan.t_end - state.stamp_s;
+    r.imu_lost = true;
+    Append(&r.reason, "IMU lost: registered LiDAR-only");
+  } else if (imu_lost) {
+    ResumeLio(&r);
+  }
   Append(&r.reason, scan.note);
   if (config.mode == Mode::kPpf && !splitter) {
     Append(&r.reason, "ppf mode requested but no ScanSplitter installed: running kNN");
@@ -199,6 +207,49 @@ void LioPpf::Impl::SplitScan(ScanResult* r) {
     else
       ++r->discarded_points;
   }
+}
+
+// The first scan of an IMU loss: the constant-velocity model continues the filter's own motion
+// (its velocity and the last turn rate), and the covariance of what LiDAR-only leaves unobserved
+// (biases, gravity) is kept for the resume.
+void LioPpf::Impl::SeedFallback() {
+  if (fallback_seeded) return;
+  fallback_seeded = true;
+  const Eigen::Isometry3d T_world_imu = state.T_world_imu();
+  motion.Seed(T_world_imu, state.stamp_s, gyro_at_scan_end - state.gyro_bias,
+              T_world_imu.linear().transpose() * state.v_world);
+  P_before_loss = state.P;
+  recent_fits.clear();
+}
+
+// Back to LIO after an IMU loss: propagation starts from the last LiDAR-only pose with the
+// velocity of the LiDAR-only pose history; biases and gravity keep their estimates and
+// covariance. No reset and no jump: the pose is the registered one.
+void LioPpf::Impl::ResumeLio(ScanResult* r) {
+  if (motion.has_twist()) state.v_world = motion.velocity_world();
+  // The pose is as good as the last LiDAR-only update made it; the velocity is the difference
+  // of two such poses over the scan interval. Neither is correlated with the rest any more.
+  const Eigen::Matrix3d P_rot = state.P.block<3, 3>(kRot, kRot);
+  const Eigen::Matrix3d P_pos = state.P.block<3, 3>(kPos, kPos);
+  const double dt = std::max(fallback_dt, 1e-3);
+  state.P = P_before_loss;
+  for (int i : {static_cast<int>(kRot), static_cast<int>(kPos), static_cast<int>(kVel)}) {
+    state.P.block<3, kStateDim>(i, 0).setZero();
+    state.P.block<kStateDim, 3>(0, i).setZero();
+  }
+  state.P.block<3, 3>(kRot, kRot) = P_rot;
+  state.P.block<3, 3>(kPos, kPos) = P_pos;
+  state.P.block<3, 3>(kVel, kVel) = 2.0 * P_pos / (dt * dt);
+  // Samples from before the gap would be interpolated across it.
+  while (!imu.empty() && imu.front().stamp_s < imu_back_stamp_s) imu.pop_front();
+  imu_lost = false;
+  imu_back = false;
+  fallback_seeded = false;
+  r->imu_gap_s = imu_loss_gap_s;
+  std::ostringstream os;
+  os << "IMU back: LIO resumed after " << imu_loss_gap_s << " s without IMU (LiDAR-only meanwhile)";
+  Append(&r->reason, os.str());
+  Log(LogLevel::kInfo, os.str());
 }
 
 // The iterated EKF with this scan's residual providers. The updated pose (T_world_lidar_out) is

@@ -19,6 +19,16 @@ void ConstantVelocityModel::Update(const Eigen::Isometry3d& T_world_body, double
   has_pose_ = true;
 }
 
+void ConstantVelocityModel::Seed(const Eigen::Isometry3d& T_world_body, double t,
+                                 const Eigen::Vector3d& omega_body, const Eigen::Vector3d& v_body) {
+  T_ = T_world_body;
+  t_ = t;
+  omega_ = omega_body;
+  v_body_ = v_body;
+  has_pose_ = true;
+  has_twist_ = true;
+}
+
 Eigen::Isometry3d ConstantVelocityModel::Delta(double dt) const {
   Eigen::Isometry3d d = Eigen::Isometry3d::Identity();
   if (!has_twist_) return d;

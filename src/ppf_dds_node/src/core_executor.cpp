@@ -34,8 +34,9 @@ constexpr double kJumpS = 0.5;
 // dropped instead of throwing away the filter and its map.
 constexpr size_t kConfirmSamples = 5;
 
-// A scan far ahead of the IMU stream has a broken stamp (or the IMU fell silent): it would make
-// every later scan look late.
+// A scan far ahead of the IMU stream that does not continue the scan stream either has a broken
+// stamp: it would make every later scan look late. (Scans that continue their stream while the
+// IMU is silent are the core's IMU loss fallback to handle.)
 constexpr double kScanAheadS = 5.0;
 
 }  // namespace
@@ -55,8 +56,10 @@ std::unique_ptr<LioPpf> CoreExecutor::CreateCore(const NodeConfig& c, std::strin
   if (c.core_mode == "ppf") core_config.mode = Mode::kPpf;
   core_config.output_deskewed_points = c.publish_registered_points;
   // imu.mode auto would hold scans for imu.auto_wait and then run LiDAR-only for good, also when
-  // a live IMU driver merely starts late; the node's IMU-loss fallback is not built (issue 16),
-  // so here auto means lio. `imu.mode: none` in the core config runs the node LiDAR-only.
+  // a live IMU driver merely starts late: the core can fall back from LIO to LiDAR-only and back
+  // (IMU loss, imu.loss_timeout), but not start LiDAR-only and switch to LIO, which needs the
+  // IMU's initialization in a new, gravity-aligned world (a jump). So here auto means lio: an
+  // IMU that is lost later is bridged by the fallback. `imu.mode: none` runs the node LiDAR-only.
   if (core_config.imu_mode == ImuMode::kAuto) core_config.imu_mode = ImuMode::kLio;
   core_config.log = [](LogLevel level, const std::string& msg) {
     const Level l = level == LogLevel::kError  ? Level::kError
@@ -205,12 +208,13 @@ void CoreExecutor::DropImuCandidates() {
 // single stale or misstamped scan cannot reset a moving robot's filter.
 bool CoreExecutor::AcceptScanStamp(double stamp) {
   const bool have_imu = std::isfinite(last_imu_fed_);
-  if (have_imu && stamp > last_imu_fed_ + kScanAheadS) {
+  const bool continues_scans = std::isfinite(last_scan_fed_) && stamp <= last_scan_fed_ + kScanAheadS;
+  if (have_imu && stamp > last_imu_fed_ + kScanAheadS && !continues_scans) {
     stats_.Add(&NodeSummary::scans_bad_stamp);
     ahead_log_.Log(Level::kWarn, "scan at " + std::to_string(stamp) + " is " +
                                      std::to_string(stamp - last_imu_fed_) +
-                                     " s ahead of the IMU stream (far-future stamp, or the IMU "
-                                     "fell silent): skipped");
+                                     " s ahead of the IMU stream (far-future stamp, not "
+                                     "continuing the scans either): skipped");
     return false;
   }
   if (stamp <= last_scan_fed_) {
@@ -311,7 +315,10 @@ void CoreExecutor::Publish(const ScanResult& r, const PendingScan& p, double cor
     const auto [scans_lost, imu_lost] = stats_.Lost();
     std::ostringstream os;
     os << std::fixed << std::setprecision(3) << "input gap: no IMU for " << r.imu_gap_s
-       << " s before the scan at " << r.stamp_s << "; bridged, odometry continues (lost so far: "
+       << " s before the scan at " << r.stamp_s << "; bridged"
+       << (r.reason.find("LIO resumed") != std::string::npos ? " (LiDAR-only meanwhile, LIO resumed)"
+                                                             : "")
+       << ", odometry continues (lost so far: "
        << scans_lost << " scans, " << imu_lost << " IMU samples)";
     Log(Level::kWarn, os.str());
   }

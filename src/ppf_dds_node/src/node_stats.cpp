@@ -33,6 +33,12 @@ void NodeStats::CountResult(const ScanResult& r) {
     ++summary_.imu_gaps_bridged;
     summary_.imu_gap_max_s = std::max(summary_.imu_gap_max_s, r.imu_gap_s);
   }
+  if (r.imu_lost) {
+    if (!summary_.imu_fallback_active) ++summary_.imu_fallbacks;
+    ++summary_.imu_fallback_scans;
+  }
+  // Notices and rejected scans say nothing about the IMU: the episode lasts until a pose says.
+  if (r.pose_valid) summary_.imu_fallback_active = r.imu_lost;
 }
 
 void NodeStats::CountNotice(const ScanResult& r) {
@@ -103,6 +109,7 @@ std::string NodeStats::PeriodicLine(size_t* latency_mark, const QueueFill& queue
   o << std::fixed << std::setprecision(2) << "status="
     << (!stalled.empty() ? "stalled (no data on " + stalled + ")"
                          : (s.last_status.empty() ? "waiting" : s.last_status))
+    << (s.imu_fallback_active ? " (IMU lost: LiDAR-only)" : "")
     << " scans rx=" << s.scans_received << " proc=" << s.scans_processed
     << " odom=" << s.odometry_published << " dropped=" << s.scans_dropped
     << " malformed=" << s.scans_malformed + s.imu_malformed << " imu rx=" << s.imu_received
@@ -128,6 +135,7 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " scans_bad_stamp=" << s.scans_bad_stamp << " points_nonfinite=" << s.points_nonfinite
     << " imu_duplicate=" << s.imu_duplicate << " imu_outliers=" << s.imu_outliers
     << " imu_gaps_bridged=" << s.imu_gaps_bridged << " imu_gap_max_s=" << s.imu_gap_max_s
+    << " imu_fallbacks=" << s.imu_fallbacks << " imu_fallback_scans=" << s.imu_fallback_scans
     << " points_stalls=" << s.points_stalls << " imu_stalls=" << s.imu_stalls
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms

@@ -117,6 +117,7 @@ int main(int argc, char** argv) {
       "malformed %llu  rejected %llu  initializing %llu  resets %llu\n"
       "  imu        received %llu  malformed %llu  overflow %llu\n"
       "  input      lost scans %llu  lost imu %llu  imu gaps bridged %llu (longest %.3f s)\n"
+      "  imu loss   LiDAR-only fallbacks %llu (%llu scans)\n"
       "  stalls     points %llu  imu %llu  (publisher matched, data stopped for "
       "diagnostics.stall_warn_s)\n"
       "  latency    p50 %.2f ms  p99 %.2f ms  (DDS receive -> odometry published)\n"
@@ -129,6 +130,7 @@ int main(int argc, char** argv) {
       (unsigned long long)s.imu_received, (unsigned long long)s.imu_malformed,
       (unsigned long long)s.imu_overflow, (unsigned long long)s.scans_lost,
       (unsigned long long)s.imu_lost, (unsigned long long)s.imu_gaps_bridged, s.imu_gap_max_s,
+      (unsigned long long)s.imu_fallbacks, (unsigned long long)s.imu_fallback_scans,
       (unsigned long long)s.points_stalls, (unsigned long long)s.imu_stalls, s.latency_p50_ms,
       s.latency_p99_ms, s.core_p50_ms, s.core_p99_ms, s.overhead_p50_ms, s.overhead_p99_ms);
   std::printf("PPF_NODE_SUMMARY %s\n", line.c_str());

@@ -17,9 +17,36 @@
 #include "ppf_dds_node/time_ordered_queue.hpp"
 #include "ppf_msgs_cdr/cdr.hpp"
 #include "ppf_msgs_cdr/cdr_payload.hpp"
+#include "../src/node_stats.hpp"  // private to the node: its counters under test
 
 namespace ppf::dds {
 namespace {
+
+// IMU loss (issue 16): an episode of LiDAR-only scans counts once, each scan in it too, and the
+// status line says so while it lasts.
+TEST(NodeStats, ImuFallbackEpisodesAreCountedAndShownInTheStatusLine) {
+  NodeStats stats;
+  ScanResult ok;
+  ok.status = Status::kOk;
+  ok.pose_valid = true;
+  ScanResult lost = ok;
+  lost.imu_lost = true;
+  size_t mark = 0;
+  stats.CountResult(ok);
+  EXPECT_EQ(stats.PeriodicLine(&mark, QueueFill(), "").find("IMU lost"), std::string::npos);
+  stats.CountResult(lost);
+  stats.CountResult(lost);
+  EXPECT_NE(stats.PeriodicLine(&mark, QueueFill(), "").find("status=ok (IMU lost: LiDAR-only) "),
+            std::string::npos);
+  stats.CountResult(ok);
+  EXPECT_EQ(stats.PeriodicLine(&mark, QueueFill(), "").find("IMU lost"), std::string::npos);
+  stats.CountResult(lost);
+  const NodeSummary s = stats.Snapshot();
+  EXPECT_EQ(s.imu_fallbacks, 2u);
+  EXPECT_EQ(s.imu_fallback_scans, 3u);
+  EXPECT_NE(NodeStats::FormatSummary(s).find(" imu_fallbacks=2 imu_fallback_scans=3 "),
+            std::string::npos);
+}
 
 TEST(NodeConfig, EmptyYamlGivesDocumentedDefaults) {
   NodeConfig c;

@@ -45,6 +45,9 @@ Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) or a ROS 1 .bag wi
                         plane: stamp, track id, age, hits, world normal/offset/centroid, inliers)
   --points-topic NAME   PointCloud2 topic (default: the first one in the bag)
   --imu-topic NAME      Imu topic (default: the first one in the bag)
+  --imu-gap S L         drop the IMU samples from S to S+L seconds after the first message (an
+                        IMU dropout, like the node test peer's --imu-gap; the core continues
+                        LiDAR-only meanwhile, imu.loss_timeout)
   --threads N           OpenMP threads for the core (default: config, else all cores)
   --dump-scan N         write scan N's registered points and skeleton planes (N counts every
                         scan result in bag order from 0; the scan must have a pose) to
@@ -68,6 +71,7 @@ struct Args {
       points_topic, imu_topic, dump_dir = ".";
   int threads = -1;
   long dump_scan = -1;
+  double imu_gap_begin = 0.0, imu_gap_length = 0.0;
   bool quiet = false;
   bool read_only = false;
 };
@@ -108,6 +112,15 @@ Args ParseArgs(int argc, char** argv) {
       a.points_topic = value(i);
     } else if (arg == "--imu-topic") {
       a.imu_topic = value(i);
+    } else if (arg == "--imu-gap") {
+      const std::string b = value(i), l = value(i);
+      char *end_b = nullptr, *end_l = nullptr;
+      a.imu_gap_begin = std::strtod(b.c_str(), &end_b);
+      a.imu_gap_length = std::strtod(l.c_str(), &end_l);
+      if (b.empty() || l.empty() || *end_b != '\0' || *end_l != '\0' || !(a.imu_gap_begin >= 0) ||
+          !(a.imu_gap_length > 0)) {
+        Fail("--imu-gap needs START >= 0 and LENGTH > 0 in seconds");
+      }
     } else if (arg == "--threads") {
       a.threads = std::atoi(value(i).c_str());
     } else if (arg == "--dump-scan") {
@@ -321,6 +334,8 @@ int main(int argc, char** argv) {
   ppf::tools::OfflineOptions options;
   options.source = {args.points_topic, args.imu_topic};
   options.lidar_frame = args.frame == "lidar";
+  options.imu_gap_begin_s = args.imu_gap_begin;
+  options.imu_gap_length_s = args.imu_gap_length;
   options.on_topics_resolved = [&](const ppf::tools::BagSourceStats& s) {
     if (!args.quiet) {
       std::cerr << "ppf_offline: " << args.bag << ": " << s.points_topic << " ("

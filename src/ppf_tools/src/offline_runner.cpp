@@ -1,6 +1,8 @@
 #include "ppf_tools/offline_runner.hpp"
 
 #include <chrono>
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <utility>
 
@@ -37,8 +39,22 @@ OfflineRun RunOffline(const std::string& bag_path, const Config& config,
     make(!s.imu_topic.empty());
     if (options.on_topics_resolved) options.on_topics_resolved(s);
   };
-  callbacks.on_imu = [&](const ImuSample& s) { lio->AddImu(s); };
+  double first_stamp = std::numeric_limits<double>::quiet_NaN();
+  auto note_first = [&](double t) {
+    if (std::isnan(first_stamp) && std::isfinite(t)) first_stamp = t;
+  };
+  callbacks.on_imu = [&](const ImuSample& s) {
+    note_first(s.stamp_s);
+    const double t = s.stamp_s - first_stamp;
+    if (options.imu_gap_length_s > 0.0 && t >= options.imu_gap_begin_s &&
+        t < options.imu_gap_begin_s + options.imu_gap_length_s) {
+      ++run.imu_dropped;
+      return;
+    }
+    lio->AddImu(s);
+  };
   callbacks.on_scan = [&](const CloudView& v) {
+    note_first(v.stamp_s);
     lio->AddScan(v);
     consume(lio->Process());
   };

@@ -93,6 +93,7 @@ RunSummary Summarize(const std::vector<ScanResult>& results, double wall_s) {
       case Status::kRejected: ++s.rejected; break;
     }
     core_ms += r.timings.total;
+    s.imu_lost += r.imu_lost;
     if (!r.pose_valid) continue;
     ++n;
     const auto& t = r.timings;
@@ -137,6 +138,9 @@ void PrintSummary(std::ostream& os, const RunSummary& s, const std::string& titl
      << std::setprecision(2) << s.wall_s << " s\n"
      << "  local map: mean " << std::setprecision(0) << s.mean_map_size << " points, max "
      << s.max_map_size << "\n";
+  if (s.imu_lost > 0) {
+    os << "  IMU lost: " << s.imu_lost << " scans registered LiDAR-only (fallback)\n";
+  }
 }
 
 }  // namespace ppf::tools

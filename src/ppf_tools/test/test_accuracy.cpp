@@ -176,6 +176,11 @@ INSTANTIATE_TEST_SUITE_P(
              12, kKnn, 0.5, 0},
         Case{"indoor_vlp16_ppf", "--scene indoor --lidar vlp16 --motion car --speed 1.5", "vlp16",
              12, kPpf, 0.5, 0},
+        // LiDAR-only on the indoor car drive (issue 16, 1 % of the path).
+        Case{"indoor_vlp16_lidar_only_knn", "--scene indoor --lidar vlp16 --motion car --speed 1.5",
+             "vlp16", 12, kKnn, 1.0, 0, 0.0, true},
+        Case{"indoor_vlp16_lidar_only_ppf", "--scene indoor --lidar vlp16 --motion car --speed 1.5",
+             "vlp16", 12, kPpf, 1.0, 0, 0.0, true},
         Case{"indoor_os1_128_knn", "--scene indoor --lidar os1_128 --motion car --speed 1.5",
              "os1_128", 8, kKnn, 0.5, 0},
         Case{"park_hdl32_knn", "--scene park --lidar hdl32", "hdl32", 12, kKnn, 1.0, 0},

@@ -63,15 +63,32 @@ struct Config {
   LidarOnlyOptions lidar_only;  // imu_mode none (hypothesis_search.hpp), YAML section lidar_only:
   ImuInitOptions init;         // static initialization (imu_init.hpp)
   ImuNoise noise;              // continuous-time noise densities (imu_propagation.hpp)
-  double max_imu_gap_s = 0.5;  // longer gaps between IMU samples are bridged or reset the filter
-  // Gaps up to this long are bridged: state and map are kept, the IMU is integrated across the
-  // gap from the samples on either side (as if it had been constant), and the uncertainty is
-  // widened by gap_acc_std / gap_gyro_std for the unmeasured motion, so the next scan
-  // re-registers against the map (ScanResult::imu_gap_s says so). Extrapolation errors grow with
-  // the square of the gap, and registration (0.5 m residual gates) only recovers small ones:
-  // measured on the urban HDL-64 replay at 5-7 m/s with the link cut, 2.0 s gaps (3 runs) ended
-  // 4-8 cm off after the gap, 2.4 s gaps 6 cm and 0.64 m (height), 2.9 s gaps 2.5-3.1 m. Longer
-  // gaps reset. 0 = always reset.
+  double max_imu_gap_s = 0.5;  // longer gaps between IMU samples are bridged or re-anchored
+  // IMU loss (lio_ppf.hpp): a scan whose end lies more than this beyond the last IMU sample,
+  // while later scans show the stream has stalled (max_imu_gap_s), is registered LiDAR-only
+  // (constant-velocity model seeded from the filter's velocity and turn rate, the guesses of
+  // hypothesis_search.hpp), keeping map, gravity and biases; LIO resumes, re-anchored, when IMU
+  // samples are back. Scans closer to the last sample are propagated with it held (extrapolated):
+  // a held acceleration and turn rate are only right for a moment, and on the simulated drives
+  // the LiDAR-only registration was the more accurate from a quarter second on (the report of
+  // issue 16 has the comparison). Shorter values gain nothing: the scan interval is 0.1 s.
+  double imu_loss_timeout_s = 0.25;
+  // The fine update's prior about the coarse pose for those scans (as lidar_only.prior_*_std).
+  // Looser than LiDAR-only's own: the map the fallback registers against was built with the
+  // IMU and the coarse alignment starts from the filter's motion, so the scan's own residuals
+  // are worth more than the guess; a tight prior held the pose off the map by centimetres.
+  double imu_loss_prior_pos_std = 0.3;  // m
+  double imu_loss_prior_rot_std = 0.1;  // rad
+  // A gap between IMU samples up to this long, without scans that needed the LiDAR-only
+  // fallback meanwhile (both streams silent), is bridged: state and map are kept, the IMU is
+  // integrated across the gap from the samples on either side (as if it had been constant), and
+  // the uncertainty is widened by gap_acc_std / gap_gyro_std for the unmeasured motion, so the
+  // next scan re-registers against the map (ScanResult::imu_gap_s says so). Extrapolation errors
+  // grow with the square of the gap and registration (0.5 m residual gates) only recovers small
+  // ones: measured on the urban HDL-64 replay at 5-7 m/s with the link cut, 2.0 s gaps ended
+  // 4-8 cm off after the gap, 2.4 s gaps 6 cm and 0.64 m (height), 2.9 s gaps 2.5-3.1 m. After a
+  // longer gap the first scan is registered LiDAR-only and LIO re-anchors (no reset). 0 = never
+  // bridge by integration.
   double max_imu_gap_bridge_s = 2.5;
   double gap_acc_std = 1.0;    // m/s^2, unmeasured acceleration assumed during a bridged gap
   double gap_gyro_std = 0.05;  // rad/s, unmeasured turn rate assumed during a bridged gap

@@ -56,16 +56,26 @@
 // the identity and velocity, biases and gravity are not estimated (velocity_world and
 // angular_velocity report the model's). ScanResult::fit says how well the scan fit the map; a fit
 // below lidar_only.min_fit is Status::kDegenerate with the reason. The mode is decided once per
-// object: switching mid-run (IMU lost) is not done here; the state and map carry over cleanly in
-// principle (the map frame is the filter's "world" in both modes), but a LIO run that loses its IMU
-// would need the constant-velocity model seeded from its last poses and, back to LIO, a fresh
-// gravity/bias estimate without a static start (see the report of issue 16).
+// object.
 //
-// Time glitches: an IMU sample or scan older than the previous one (bag loop), or an IMU gap
-// longer than max_imu_gap_bridge_s, resets the filter and the map (Status::kReset with the
-// reason) and initialization starts over. A shorter gap that still exceeds max_imu_gap_s (a
-// network link down for a moment, a stalled driver) is bridged instead: a reset would need a
-// static start again, which a moving robot never gives, so its odometry would not come back.
+// IMU loss (LIO running): when the IMU stream stops, or delivers only invalid samples, while the
+// scans go on, a scan ending more than Config::imu_loss_timeout_s after the last IMU sample (the
+// later scans showing the stream has stalled) is registered LiDAR-only as above: the
+// constant-velocity model starts from the filter's own velocity and turn rate, the same guesses
+// are aligned, and the map, gravity and biases are kept (one WARN "IMU lost ...: continuing
+// LiDAR-only", ScanResult::imu_lost on each such scan). Scans closer to the last sample are
+// propagated with it held, as before. When IMU samples are back, the first scan they cover
+// resumes LIO: propagation starts from the last LiDAR-only pose with the velocity of the
+// LiDAR-only pose history, biases and gravity with their covariance from before the loss (no
+// reset, no jump; one INFO line, and ScanResult::imu_gap_s on that scan).
+//
+// Time glitches: an IMU sample or scan older than the previous one (bag loop) resets the filter
+// and the map (Status::kReset with the reason) and initialization starts over. An IMU gap that
+// exceeds max_imu_gap_s without scans needing the fallback meanwhile (both streams silent: a
+// network link down for a moment, a stalled driver) is bridged up to max_imu_gap_bridge_s
+// (integrated across, uncertainty widened); after a longer one the first scan is registered
+// LiDAR-only and LIO re-anchors, as after an IMU loss. A reset would need a static start again,
+// which a moving robot never gives, so its odometry would not come back.
 // Malformed clouds return Status::kRejected and change nothing.
 #pragma once
 
@@ -123,6 +133,9 @@ struct ScanResult {
   std::string reason;          // human readable: why not kOk, notes (e.g. time field fallback)
   bool pose_valid = false;     // false for kInitializing / kRejected / kReset
   double imu_gap_s = 0.0;      // > 0: an IMU gap this long before this scan was bridged
+  // Registered LiDAR-only because the IMU stream is lost mid-run (IMU loss fallback, Config::
+  // imu_loss_timeout_s); the reason says so. The first LIO scan after it has imu_gap_s > 0.
+  bool imu_lost = false;
 
   // Poses, velocity, planes and covariances are in the gravity-aligned world: z up as the filter
   // now estimates it, origin and yaw of the IMU at initialization. The map is built in the frame

@@ -24,6 +24,10 @@ class ConstantVelocityModel {
   // Records the registered pose of the body at time t (strictly after the previous one, else the
   // pose replaces it and the twist is kept).
   void Update(const Eigen::Isometry3d& T_world_body, double t);
+  // Starts from a pose and a known body-frame twist (per second) instead of two poses: the LIO
+  // filter's own velocity and turn rate when its IMU stream is lost (lio_ppf.hpp, IMU loss).
+  void Seed(const Eigen::Isometry3d& T_world_body, double t, const Eigen::Vector3d& omega_body,
+            const Eigen::Vector3d& v_body);
 
   bool has_pose() const { return has_pose_; }
   bool has_twist() const { return has_twist_; }

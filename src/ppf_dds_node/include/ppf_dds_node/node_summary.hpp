@@ -36,10 +36,17 @@ struct NodeSummary {
   // Stamps off the stream's timeline (> 0.5 s back or ahead) that the following samples did
   // not confirm: single outliers, dropped instead of restarting the filter.
   uint64_t imu_outliers = 0;
-  // IMU gaps (a link down, a stalled driver) the core bridged with state and map kept; longer
-  // ones reset it (resets). The longest bridged gap in seconds of sensor time.
+  // IMU gaps (a link down, a stalled driver) the core bridged with state and map kept, by
+  // integration or LiDAR-only (IMU loss fallback) until LIO resumed. The longest in seconds of
+  // sensor time.
   uint64_t imu_gaps_bridged = 0;
   double imu_gap_max_s = 0;
+  // IMU loss fallback (core: imu.loss_timeout): episodes in which the core registered scans
+  // LiDAR-only because the IMU stream had stopped, and the scans so registered. While one lasts
+  // the status line says "IMU lost: LiDAR-only".
+  uint64_t imu_fallbacks = 0;
+  uint64_t imu_fallback_scans = 0;
+  bool imu_fallback_active = false;
   // Episodes of silence on a stream with a matched publisher, after data had flowed on it
   // (diagnostics.stall_warn_s): the data stopped while matching said all was well.
   uint64_t points_stalls = 0;

@@ -18,6 +18,7 @@ struct OfflineRun {
   BagSourceStats source;
   double wall_s = 0.0;
   bool lidar_only = false;  // the core ran without IMU (imu.mode none, or a bag without IMU)
+  uint64_t imu_dropped = 0;  // OfflineOptions::imu_gap_*
 };
 
 struct OfflineOptions {
@@ -30,6 +31,11 @@ struct OfflineOptions {
   // Called with each result (index in bag order from 0) before it is stored: e.g. to write one
   // scan's points and drop the others' so a long run does not keep every cloud.
   std::function<void(size_t, ScanResult*)> on_result;
+  // > 0: no IMU sample reaches the core from imu_gap_begin_s to imu_gap_begin_s +
+  // imu_gap_length_s after the first message's stamp (a dropout, as the node's test peer's
+  // --imu-gap makes one over DDS). Dropped samples count in OfflineRun::imu_dropped.
+  double imu_gap_begin_s = 0.0;
+  double imu_gap_length_s = 0.0;
 };
 
 // Throws ppf::bag::BagError if the bag cannot be read.

@@ -407,8 +407,9 @@ TEST(NodeProcess, FiveMillionPointCloudIsRefusedBySizeAndOdometryGoesOnWithMemor
   ASSERT_GT(rss_before_kb, 0);
   ASSERT_GT(anon_before_kb, 0);
   ASSERT_GT(hwm_kb, 0);
-  // While refusing it the node held the cloud at most a few times over (reassembled payload,
-  // decoded copy). Afterwards none of it stays in the node's own memory (before: the reader
+  // While refusing it the node held the cloud about once: Fast DDS's reassembled payload. Our
+  // size gate reads the declared point count from the payload's CDR header and refuses it
+  // undecoded (before: decoded into a second copy first, VmHWM +2.35x the cloud). Afterwards none of it stays in the node's own memory (before: the reader
   // history slot and the pooled buffer kept both copies resident); what VmRSS keeps is the
   // writer's shared-memory segment the cloud passed through, mapped and bounded by its size
   // (test_loopback.xml).
@@ -419,7 +420,7 @@ TEST(NodeProcess, FiveMillionPointCloudIsRefusedBySizeAndOdometryGoesOnWithMemor
     rig.RemoveDirUnless(HasFailure());
     return;
   }
-  EXPECT_LT(hwm_kb - rss_before_kb, static_cast<long>(3 * huge_mb * 1000));
+  EXPECT_LT(hwm_kb - rss_before_kb, static_cast<long>(1.6 * huge_mb * 1000));
   EXPECT_LT(anon_after_kb - anon_before_kb, static_cast<long>(0.1 * huge_mb * 1000));
   EXPECT_LT(rss_after_kb - rss_before_kb, 32 * 1024 + static_cast<long>(0.1 * huge_mb * 1000));
   rig.RemoveDirUnless(HasFailure());

@@ -17,15 +17,8 @@
 #include "ppf_tools/offline_runner.hpp"
 #include "ppf_tools/study.hpp"
 #include "ppf_trajectory/evaluation.hpp"
+#include "sim_sequence.hpp"
 
-#ifndef PPF_SIM_EXE
-#define PPF_SIM_EXE "ppf_sim"
-#endif
-#ifndef PPF_CONFIG_DIR
-#define PPF_CONFIG_DIR "config"
-#endif
-
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -35,23 +28,6 @@ struct Case {
   std::string lidar;  // config preset
   ppf::Mode mode;
 };
-
-std::string Generate(const Case& c, double duration) {
-  std::string n = c.sim_args + "_" + std::to_string(static_cast<int>(duration));
-  for (char& ch : n) {
-    if (ch == ' ' || ch == '-') ch = '_';
-  }
-  const fs::path dir = fs::path(PPF_TEST_WORKDIR) / n;
-  const bool ok = ppf::tools::GenerateSequenceOnce(dir.string(), [&](const std::string& out) {
-    std::ostringstream cmd;
-    cmd << PPF_SIM_EXE << " " << c.sim_args << " --duration " << duration
-        << " --seed 1 --storage mcap --out '" << out << "' > '" << dir.string() << "." << ::getpid()
-        << ".log' 2>&1";
-    return std::system(cmd.str().c_str()) == 0;
-  });
-  EXPECT_TRUE(ok) << "ppf_sim failed, see " << dir.string() << ".<pid>.log";
-  return dir.string();
-}
 
 // Nearest ground-truth pose (ppf_sim writes one per IMU sample, 5 ms apart).
 const ppf::StampedPose* Nearest(const ppf::Trajectory& gt, double t) {
@@ -86,10 +62,9 @@ class ImuLoss : public ::testing::TestWithParam<Case> {};
 TEST_P(ImuLoss, ThreeSecondDropoutContinuesLidarOnlyAndResumes) {
   const Case& c = GetParam();
   const double kDuration = 14.0, kGapBegin = 6.0, kGapLength = 3.0;
-  const std::string bag = Generate(c, kDuration);
+  const std::string bag = ppf::tools::test::GenerateSimSequence(c.sim_args, kDuration);
   ppf::Config config;
-  ASSERT_TRUE(ppf::LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/" + c.lidar + ".yaml", &config).ok);
-  ASSERT_TRUE(ppf::LoadConfigYaml(bag + "/calibration.yaml", &config).ok);
+  ASSERT_TRUE(ppf::tools::test::LoadPresetAndCalibration(c.lidar, bag, &config));
   config.mode = c.mode;
   config.num_threads = 1;  // reproducible figures
   ppf::Trajectory gt;

@@ -18,6 +18,7 @@
 #include "ppf_msgs_cdr/cdr.hpp"
 #include "ppf_msgs_cdr/cdr_payload.hpp"
 #include "../src/node_stats.hpp"  // private to the node: its counters under test
+#include "test_domain.hpp"
 
 namespace ppf::dds {
 namespace {
@@ -388,3 +389,27 @@ TEST(DecodeCdrPayload, AgreesWithDecodeCdrOnValidAndMalformedPayloads) {
 
 }  // namespace
 }  // namespace ppf::dds
+
+// Two test processes at once must not share a DDS domain (each would see the other's node): a
+// domain another process has claimed (its lock file flocked) is skipped, and the same salt keeps
+// its domain within a process.
+TEST(TestDomain, ADomainClaimedElsewhereIsSkippedAndASaltKeepsItsDomain) {
+  const int salt = 77;
+  const unsigned start = (static_cast<unsigned>(getpid()) * 7u + static_cast<unsigned>(salt)) % 100u;
+  const int first_choice = 1 + static_cast<int>(start);
+  const char* tmp = std::getenv("TMPDIR");
+  const std::string dir = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
+  const std::string path =
+      dir + "/ppf_dds_test_domain_" + std::to_string(first_choice) + ".lock";
+  // Another holder: a separate open file description, as another process would have.
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0) << "lock file held by another test process";
+  const int domain = ppf::test::TestDomainId(salt);
+  EXPECT_NE(domain, first_choice);
+  EXPECT_GE(domain, 1);
+  EXPECT_LE(domain, 100);
+  EXPECT_EQ(ppf::test::TestDomainId(salt), domain);
+  EXPECT_NE(ppf::test::TestDomainId(salt + 1), domain);
+  ::close(fd);
+}

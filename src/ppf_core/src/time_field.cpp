@@ -97,6 +97,169 @@ const char* TypeName(FieldType t) {
 
 bool IsIntegerType(FieldType t) { return t != FieldType::kFloat32 && t != FieldType::kFloat64; }
 
+// The configured time field, or the first of the known names the cloud has.
+const FieldDesc* FindTimeField(const CloudView& cloud, const std::string& configured_name) {
+  if (!configured_name.empty()) return FindField(cloud, configured_name);
+  for (const std::string& name : KnownTimeFieldNames()) {
+    if (const FieldDesc* f = FindField(cloud, name)) return f;
+  }
+  return nullptr;
+}
+
+// Visits the points in index order, row by row (no division per point): visit(i, point bytes).
+template <typename Visit>
+void ForEachPoint(const CloudView& cloud, Visit&& visit) {
+  const uint64_t row_step =
+      cloud.row_step == 0 ? static_cast<uint64_t>(cloud.width) * cloud.point_step : cloud.row_step;
+  size_t i = 0;
+  for (uint32_t row = 0; row < cloud.height; ++row) {
+    const uint8_t* p = cloud.data + row * row_step;
+    for (uint32_t col = 0; col < cloud.width; ++col, ++i, p += cloud.point_step) visit(i, p);
+  }
+}
+
+// The raw (unscaled) value of the time field of every point, in index order.
+void ReadRawTimes(const CloudView& cloud, const FieldDesc& ft, std::vector<double>* raw_t) {
+  raw_t->resize(static_cast<size_t>(cloud.width) * cloud.height);
+  double* raw = raw_t->data();
+  if (ft.type == FieldType::kFloat32) {
+    ForEachPoint(cloud, [&](size_t i, const uint8_t* p) { raw[i] = ReadFloat32(p + ft.offset); });
+  } else {
+    ForEachPoint(cloud,
+                 [&](size_t i, const uint8_t* p) { raw[i] = ReadAs(p + ft.offset, ft.type); });
+  }
+}
+
+// Point time = base + raw * scale, or the header stamp for every point when raw is null.
+struct TimeMap {
+  const double* raw = nullptr;
+  double base = 0.0;
+  double scale = 1.0;
+  double stamp_s = 0.0;
+  double At(size_t i) const { return raw ? base + raw[i] * scale : stamp_s; }
+};
+
+// Where raw time zero lies: nowhere for absolute times (base 0), the header stamp for times
+// relative to the scan start, and stamp - last time for stamp-at-end clouds whose times are
+// non-negative (times ending at 0 are offsets from the end already).
+double TimeBase(const TimeFieldInfo& info, double stamp_s, const std::vector<double>& raw_t) {
+  if (info.absolute) return 0.0;
+  if (!info.stamp_at_end) return stamp_s;
+  double hi = -std::numeric_limits<double>::infinity();
+  for (double v : raw_t) {
+    if (std::isfinite(v)) hi = std::max(hi, v * info.unit_scale_s);
+  }
+  return std::isfinite(hi) && hi > 0.0 ? stamp_s - hi : stamp_s;
+}
+
+// The coordinate and intensity fields of a validated cloud (intensity null when absent or not
+// fitting in point_step).
+struct PointFields {
+  const FieldDesc* x;
+  const FieldDesc* y;
+  const FieldDesc* z;
+  const FieldDesc* intensity;
+  bool XyzFloat32() const {
+    return x->type == FieldType::kFloat32 && y->type == FieldType::kFloat32 &&
+           z->type == FieldType::kFloat32;
+  }
+  bool IntensityFloat32() const { return intensity && intensity->type == FieldType::kFloat32; }
+};
+
+// Every field float32 (nearly every driver): one pass writing straight into the output, with
+// the general path's values and validity test (a non-finite or > 1e30 coordinate fails
+// |c| <= 1e30; the time is the same double).
+void DecodeAllFloat32(const CloudView& cloud, const PointFields& f, const TimeMap& times,
+                      DecodedScan* out) {
+  out->points.resize(static_cast<size_t>(cloud.width) * cloud.height);
+  TimedPoint* dst = out->points.data();
+  size_t kept = 0;
+  const uint32_t ox = f.x->offset, oy = f.y->offset, oz = f.z->offset;
+  const uint32_t oi = f.intensity ? f.intensity->offset : 0;
+  ForEachPoint(cloud, [&](size_t i, const uint8_t* p) {
+    const double x = ReadFloat32(p + ox), y = ReadFloat32(p + oy), z = ReadFloat32(p + oz);
+    const double t = times.At(i);
+    if (!(std::abs(x) <= 1e30 && std::abs(y) <= 1e30 && std::abs(z) <= 1e30) || !std::isfinite(t)) {
+      ++out->dropped_nan;
+      return;
+    }
+    TimedPoint& tp = dst[kept++];
+    tp.p = Eigen::Vector3f(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
+    tp.t = t;
+    if (f.intensity) {
+      const double v = ReadFloat32(p + oi);
+      tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
+    } else {
+      tp.intensity = 0.f;
+    }
+  });
+  out->points.resize(kept);
+}
+
+// Any field types: each element read through its type (float32 x/y/z and intensity skip the
+// per-element type dispatch; the values and the validity test are the same as through ReadAs).
+void DecodeGeneral(const CloudView& cloud, const PointFields& f, const TimeMap& times,
+                   DecodedScan* out) {
+  const bool xyz_f32 = f.XyzFloat32();
+  const bool intensity_f32 = f.IntensityFloat32();
+  out->points.reserve(static_cast<size_t>(cloud.width) * cloud.height);
+  ForEachPoint(cloud, [&](size_t i, const uint8_t* p) {
+    const Eigen::Vector3d xyz =
+        xyz_f32 ? Eigen::Vector3d(ReadFloat32(p + f.x->offset), ReadFloat32(p + f.y->offset),
+                                  ReadFloat32(p + f.z->offset))
+                : Eigen::Vector3d(ReadAs(p + f.x->offset, f.x->type),
+                                  ReadAs(p + f.y->offset, f.y->type),
+                                  ReadAs(p + f.z->offset, f.z->type));
+    TimedPoint tp;
+    tp.t = times.At(i);
+    // float64 coordinates beyond float range would overflow the conversion: treat as invalid.
+    if (!xyz.allFinite() || xyz.cwiseAbs().maxCoeff() > 1e30 || !std::isfinite(tp.t)) {
+      ++out->dropped_nan;
+      return;
+    }
+    tp.p = xyz.cast<float>();
+    if (f.intensity) {
+      const FieldDesc& fi = *f.intensity;
+      const double v = intensity_f32 ? ReadFloat32(p + fi.offset) : ReadAs(p + fi.offset, fi.type);
+      tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
+    }
+    out->points.push_back(tp);
+  });
+}
+
+// No time field: spread the points over one spin period by their azimuth from the first point
+// (a spinning LiDAR assumed), or leave every point at the header stamp.
+void ApplyNoTimePolicy(const TimeFieldOptions& options, double stamp_s, DecodedScan* out) {
+  if (options.no_time_policy != NoTimePolicy::kAzimuth || out->points.empty()) {
+    out->note = "no time field: scan not de-skewed";
+    return;
+  }
+  const double period = options.scan_period_s > 0.0 ? options.scan_period_s : 0.1;
+  const double start = options.stamp_position == StampPosition::kEnd ? stamp_s - period : stamp_s;
+  const double a0 = std::atan2(out->points.front().p.y(), out->points.front().p.x());
+  for (TimedPoint& tp : out->points) {
+    const double a = std::atan2(tp.p.y(), tp.p.x());
+    double swept = options.azimuth_clockwise ? a0 - a : a - a0;
+    swept = std::fmod(swept, kTwoPi);
+    if (swept < 0.0) swept += kTwoPi;
+    tp.t = start + period * swept / kTwoPi;
+  }
+  out->times_estimated = true;
+  out->note = "no time field: point times estimated from azimuth";
+}
+
+// t_begin / t_end: the earliest and latest point time (left at the stamp without points).
+void SetTimeSpan(DecodedScan* out) {
+  if (out->points.empty()) return;
+  double lo = out->points.front().t, hi = lo;
+  for (const TimedPoint& tp : out->points) {
+    lo = std::min(lo, tp.t);
+    hi = std::max(hi, tp.t);
+  }
+  out->t_begin = lo;
+  out->t_end = hi;
+}
+
 }  // namespace
 
 const std::vector<std::string>& KnownTimeFieldNames() {
@@ -236,163 +399,40 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
   out->input_points = n;
   if (n == 0) return true;
 
-  const FieldDesc* fx = FindField(cloud, "x");
-  const FieldDesc* fy = FindField(cloud, "y");
-  const FieldDesc* fz = FindField(cloud, "z");
-  const FieldDesc* fi = FindField(cloud, "intensity");
-  if (fi && !FieldFits(*fi, cloud.point_step)) fi = nullptr;
-  const FieldDesc* ft = nullptr;
-  if (!options_.field_name.empty()) {
-    ft = FindField(cloud, options_.field_name);
-  } else {
-    for (const std::string& name : KnownTimeFieldNames()) {
-      if ((ft = FindField(cloud, name)) != nullptr) break;
-    }
+  PointFields fields{FindField(cloud, "x"), FindField(cloud, "y"), FindField(cloud, "z"),
+                     FindField(cloud, "intensity")};
+  if (fields.intensity && !FieldFits(*fields.intensity, cloud.point_step)) {
+    fields.intensity = nullptr;
   }
+  const FieldDesc* ft = FindTimeField(cloud, options_.field_name);
   if (ft && !FieldFits(*ft, cloud.point_step)) {
     if (error) *error = "time field '" + ft->name + "' lies outside point_step";
     return false;
   }
 
-  const uint64_t row_step =
-      cloud.row_step == 0 ? static_cast<uint64_t>(cloud.width) * cloud.point_step : cloud.row_step;
-  // Visits the points in index order, row by row (no division per point).
-  auto for_each_point = [&](auto&& visit) {
-    size_t i = 0;
-    for (uint32_t row = 0; row < cloud.height; ++row) {
-      const uint8_t* p = cloud.data + row * row_step;
-      for (uint32_t col = 0; col < cloud.width; ++col, ++i, p += cloud.point_step) visit(i, p);
-    }
-  };
-
-  std::vector<double>& raw_t = raw_t_;
-  raw_t.clear();
-  if (ft) {
-    raw_t.resize(n);
-    if (ft->type == FieldType::kFloat32) {
-      for_each_point([&](size_t i, const uint8_t* p) { raw_t[i] = ReadFloat32(p + ft->offset); });
-    } else {
-      for_each_point(
-          [&](size_t i, const uint8_t* p) { raw_t[i] = ReadAs(p + ft->offset, ft->type); });
-    }
-  }
+  raw_t_.clear();
+  if (ft) ReadRawTimes(cloud, *ft, &raw_t_);
   // Detect once; a later change of layout (different field) triggers a new detection.
   if (!info_.detected || info_.present != (ft != nullptr) ||
       (ft && (ft->name != info_.name || ft->type != info_.type))) {
-    Detect(cloud, ft, raw_t);
+    Detect(cloud, ft, raw_t_);
   }
 
   out->has_time_field = ft != nullptr;
-  out->points.reserve(n);
-  double base = cloud.stamp_s;
-  double scale = info_.unit_scale_s;
+  TimeMap times;
+  times.stamp_s = cloud.stamp_s;
   if (ft) {
-    if (info_.absolute) {
-      base = 0.0;
-    } else if (info_.stamp_at_end) {
-      // Times ending at 0 are offsets from the end already; non-negative ones are shifted so the
-      // last point lands on the stamp.
-      double hi = -std::numeric_limits<double>::infinity();
-      for (double v : raw_t) {
-        if (std::isfinite(v)) hi = std::max(hi, v * scale);
-      }
-      if (std::isfinite(hi) && hi > 0.0) base = cloud.stamp_s - hi;
-    }
+    times.raw = raw_t_.data();
+    times.base = TimeBase(info_, cloud.stamp_s, raw_t_);
+    times.scale = info_.unit_scale_s;
   }
-
-  // float32 x/y/z and intensity (nearly every driver) skip the per-element type dispatch; the
-  // values and the validity test are the same as through ReadAs.
-  const bool xyz_f32 = fx->type == FieldType::kFloat32 && fy->type == FieldType::kFloat32 &&
-                       fz->type == FieldType::kFloat32;
-  const bool intensity_f32 = fi && fi->type == FieldType::kFloat32;
-  auto decode = [&](size_t i, const uint8_t* p, const Eigen::Vector3d& xyz) {
-    TimedPoint tp;
-    tp.t = ft ? base + raw_t[i] * scale : cloud.stamp_s;
-    // float64 coordinates beyond float range would overflow the conversion: treat as invalid.
-    if (!xyz.allFinite() || xyz.cwiseAbs().maxCoeff() > 1e30 || !std::isfinite(tp.t)) {
-      ++out->dropped_nan;
-      return;
-    }
-    tp.p = xyz.cast<float>();
-    if (fi) {
-      const double v =
-          intensity_f32 ? ReadFloat32(p + fi->offset) : ReadAs(p + fi->offset, fi->type);
-      tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
-    }
-    out->points.push_back(tp);
-  };
-  if (xyz_f32 && (!fi || intensity_f32)) {
-    // Every field float32 (nearly every driver): one pass writing straight into the output, with
-    // the general path's values and validity test (a non-finite or > 1e30 coordinate fails
-    // |c| <= 1e30; the time is the same double).
-    out->points.resize(n);
-    TimedPoint* dst = out->points.data();
-    size_t kept = 0;
-    const uint32_t ox = fx->offset, oy = fy->offset, oz = fz->offset;
-    const uint32_t oi = fi ? fi->offset : 0;
-    const double* times = ft ? raw_t.data() : nullptr;
-    for_each_point([&](size_t i, const uint8_t* p) {
-      const double x = ReadFloat32(p + ox), y = ReadFloat32(p + oy), z = ReadFloat32(p + oz);
-      const double t = times ? base + times[i] * scale : cloud.stamp_s;
-      if (!(std::abs(x) <= 1e30 && std::abs(y) <= 1e30 && std::abs(z) <= 1e30) ||
-          !std::isfinite(t)) {
-        ++out->dropped_nan;
-        return;
-      }
-      TimedPoint& tp = dst[kept++];
-      tp.p = Eigen::Vector3f(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
-      tp.t = t;
-      if (fi) {
-        const double v = ReadFloat32(p + oi);
-        tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
-      } else {
-        tp.intensity = 0.f;
-      }
-    });
-    out->points.resize(kept);
-  } else if (xyz_f32) {
-    for_each_point([&](size_t i, const uint8_t* p) {
-      decode(i, p,
-             Eigen::Vector3d(ReadFloat32(p + fx->offset), ReadFloat32(p + fy->offset),
-                             ReadFloat32(p + fz->offset)));
-    });
+  if (fields.XyzFloat32() && (!fields.intensity || fields.IntensityFloat32())) {
+    DecodeAllFloat32(cloud, fields, times, out);
   } else {
-    for_each_point([&](size_t i, const uint8_t* p) {
-      decode(i, p,
-             Eigen::Vector3d(ReadAs(p + fx->offset, fx->type), ReadAs(p + fy->offset, fy->type),
-                             ReadAs(p + fz->offset, fz->type)));
-    });
+    DecodeGeneral(cloud, fields, times, out);
   }
-
-  if (!ft) {
-    if (options_.no_time_policy == NoTimePolicy::kAzimuth && !out->points.empty()) {
-      const double period = options_.scan_period_s > 0.0 ? options_.scan_period_s : 0.1;
-      const double start =
-          options_.stamp_position == StampPosition::kEnd ? cloud.stamp_s - period : cloud.stamp_s;
-      const double a0 = std::atan2(out->points.front().p.y(), out->points.front().p.x());
-      for (TimedPoint& tp : out->points) {
-        const double a = std::atan2(tp.p.y(), tp.p.x());
-        double swept = options_.azimuth_clockwise ? a0 - a : a - a0;
-        swept = std::fmod(swept, kTwoPi);
-        if (swept < 0.0) swept += kTwoPi;
-        tp.t = start + period * swept / kTwoPi;
-      }
-      out->times_estimated = true;
-      out->note = "no time field: point times estimated from azimuth";
-    } else {
-      out->note = "no time field: scan not de-skewed";
-    }
-  }
-
-  if (!out->points.empty()) {
-    double lo = out->points.front().t, hi = lo;
-    for (const TimedPoint& tp : out->points) {
-      lo = std::min(lo, tp.t);
-      hi = std::max(hi, tp.t);
-    }
-    out->t_begin = lo;
-    out->t_end = hi;
-  }
+  if (!ft) ApplyNoTimePolicy(options_, cloud.stamp_s, out);
+  SetTimeSpan(out);
   return true;
 }
 

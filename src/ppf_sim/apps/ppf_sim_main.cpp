@@ -72,6 +72,126 @@ Options
   --help                this text
 )";
 
+using ppf::sim::CliArgs;
+using ppf::sim::SimConfig;
+
+// Each Parse* step reads one group of options into cfg and rejects bad values with
+// std::invalid_argument. main runs them in a fixed order: with several bad options, the first
+// one in that order is the one reported.
+
+// What to generate and where: output, scene, LiDAR, length, seed, storage.
+void ParseSequence(const CliArgs& args, SimConfig* cfg) {
+  if (!args.Has("out")) throw std::invalid_argument("--out DIR is required (see --help)");
+  cfg->out_dir = args.Str("out", "");
+  cfg->world.scene = args.Str("scene", "urban");
+  cfg->lidar = args.Str("lidar", "hdl64");
+  ppf::sim::GetLidarModel(cfg->lidar);  // validate early
+  cfg->world.duration = args.Num("duration", 30.0);
+  if (!(cfg->world.duration > 0.0 && cfg->world.duration <= 3600.0))
+    throw std::invalid_argument("--duration must be in (0, 3600]");
+  const double seed = args.Num("seed", 1);
+  if (seed < 0 || seed != static_cast<double>(static_cast<uint64_t>(seed)))
+    throw std::invalid_argument("--seed must be a non-negative integer");
+  cfg->seed = static_cast<uint64_t>(seed);
+  cfg->bag.storage = args.Str("storage", "mcap");
+  cfg->bag.compression = args.Str("compression", "none");
+}
+
+// How the platform moves: car or hand-held, speed, rest at the start, shake rate.
+void ParseMotion(const CliArgs& args, ppf::sim::WorldOptions* world) {
+  using ppf::sim::MotionKind;
+  if (args.Has("motion")) {
+    const std::string m = args.Str("motion", "");
+    if (m != "car" && m != "handheld") throw std::invalid_argument("--motion: car | handheld");
+    world->motion = m == "car" ? MotionKind::kCar : MotionKind::kHandheld;
+    world->motion_is_default = false;
+  }
+  world->speed = args.Num("speed", 0.0);
+  if (world->speed < 0.0 || world->speed > 40.0)
+    throw std::invalid_argument("--speed must be in [0, 40] m/s");
+  world->static_time = args.Num("static", 2.5);
+  if (world->static_time < 0.0) throw std::invalid_argument("--static must be >= 0");
+  world->moving_start = args.Has("moving-start");
+  if (world->moving_start && args.Has("static"))
+    throw std::invalid_argument("--moving-start and --static exclude each other");
+  world->max_rate_deg = args.Num("max-rate", 150.0);
+}
+
+// LiDAR measurement errors and reach.
+void ParseLidarNoise(const CliArgs& args, ppf::sim::ScanOptions* scan) {
+  scan->range_noise = args.Num("range-noise", 0.02);
+  scan->dropout = args.Num("dropout", 0.005);
+  if (scan->range_noise < 0 || scan->dropout < 0 || scan->dropout > 1)
+    throw std::invalid_argument("--range-noise must be >= 0, --dropout in [0, 1]");
+  scan->max_range = args.Num("max-range", 0.0);
+}
+
+// IMU rate, noise densities and biases, gravity.
+void ParseImu(const CliArgs& args, SimConfig* cfg) {
+  cfg->imu_rate = args.Num("imu-rate", 200.0);
+  if (cfg->imu_rate < 50.0 || cfg->imu_rate > 1000.0)
+    throw std::invalid_argument("--imu-rate must be in [50, 1000] Hz");
+  ppf::sim::ImuNoise& n = cfg->imu_noise;
+  if (args.Has("no-imu-noise")) n = ppf::sim::ImuNoise::Zero();
+  n.gyro_noise = args.Num("gyro-noise", n.gyro_noise);
+  n.accel_noise = args.Num("accel-noise", n.accel_noise);
+  n.gyro_bias_rw = args.Num("gyro-bias-rw", n.gyro_bias_rw);
+  n.accel_bias_rw = args.Num("accel-bias-rw", n.accel_bias_rw);
+  n.gyro_bias_init = args.Num("gyro-bias-init", n.gyro_bias_init);
+  n.accel_bias_init = args.Num("accel-bias-init", n.accel_bias_init);
+  cfg->gravity = args.Num("gravity", 9.81);
+}
+
+// The LiDAR mount (T_imu_lidar), the clock origin and the driver time conventions.
+void ParseMountAndTime(const CliArgs& args, SimConfig* cfg) {
+  using ppf::sim::ScanOptions;
+  const auto ex = args.List("extrinsic", 6, {0.2, 0.05, 0.15, 1.0, -1.5, 2.0});
+  cfg->scan.T_imu_lidar = Eigen::Isometry3d::Identity();
+  cfg->scan.T_imu_lidar.translation() = Eigen::Vector3d(ex[0], ex[1], ex[2]);
+  cfg->scan.T_imu_lidar.linear() =
+      ppf::sim::EulerToRotation(Eigen::Vector3d(ex[3], ex[4], ex[5]) * M_PI / 180.0);
+  cfg->start_ns = static_cast<int64_t>(std::llround(args.Num("start-time", 1700000000.0) * 1e9));
+  const std::string tf = args.Str("time-field", "driver"), st = args.Str("stamp", "start");
+  if (tf != "driver" && tf != "none" && tf != "abs_f64")
+    throw std::invalid_argument("--time-field: driver | none | abs_f64");
+  if (st != "start" && st != "end") throw std::invalid_argument("--stamp: start | end");
+  if ((tf != "driver" || st != "start") &&
+      ppf::sim::GetLidarModel(cfg->lidar).layout != ppf::sim::PointLayout::kVelodyne)
+    throw std::invalid_argument("--time-field/--stamp apply to velodyne models only");
+  cfg->scan.time_field = tf == "none"      ? ScanOptions::TimeField::kNone
+                         : tf == "abs_f64" ? ScanOptions::TimeField::kAbsoluteF64
+                                           : ScanOptions::TimeField::kDriverDefault;
+  cfg->scan.stamp_at_end = st == "end";
+}
+
+// Frame ids and topic names.
+void ParseNames(const CliArgs& args, SimConfig* cfg) {
+  cfg->scan.frame_id = args.Str("lidar-frame", "lidar");
+  cfg->imu_frame = args.Str("imu-frame", "imu");
+  cfg->bag.points_topic = args.Str("points-topic", "/points");
+  cfg->bag.imu_topic = args.Str("imu-topic", "/imu");
+}
+
+void ApplyThreads(const CliArgs& args) {
+  if (!args.Has("threads")) return;
+  const double threads = args.Num("threads", 1);
+  if (threads < 1 || threads > 256 || threads != static_cast<int>(threads))
+    throw std::invalid_argument("--threads must be an integer >= 1");
+  omp_set_num_threads(static_cast<int>(threads));
+}
+
+void PrintSummary(const ppf::sim::SimSummary& s) {
+  std::printf("\n%-28s %10s\n", "stage", "seconds");
+  std::printf("%-28s %10.3f\n", "world (scene + trajectory)", s.seconds_world);
+  std::printf("%-28s %10.3f\n", "imu synthesis", s.seconds_imu);
+  std::printf("%-28s %10.3f\n", "ray casting (scans)", s.seconds_scans);
+  std::printf("%-28s %10.3f\n", "serialize + write bag", s.seconds_write);
+  std::printf("%-28s %10.3f\n", "total incl. ground truth", s.seconds_total);
+  std::printf("\n%d scans, %.0f points/scan, %d IMU samples, %.1f MB payload, %.1f ms/scan\n",
+              s.scans, s.scans ? static_cast<double>(s.points) / s.scans : 0.0, s.imu_samples,
+              s.bytes / 1e6, s.scans ? 1e3 * s.seconds_total / s.scans : 0.0);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -89,94 +209,20 @@ int main(int argc, char** argv) {
       std::fputs(kHelp, stdout);
       return 0;
     }
-    if (!args.Has("out")) throw std::invalid_argument("--out DIR is required (see --help)");
     SimConfig cfg;
-    cfg.out_dir = args.Str("out", "");
-    cfg.world.scene = args.Str("scene", "urban");
-    cfg.lidar = args.Str("lidar", "hdl64");
-    GetLidarModel(cfg.lidar);  // validate early
-    cfg.world.duration = args.Num("duration", 30.0);
-    if (!(cfg.world.duration > 0.0 && cfg.world.duration <= 3600.0))
-      throw std::invalid_argument("--duration must be in (0, 3600]");
-    const double seed = args.Num("seed", 1);
-    if (seed < 0 || seed != static_cast<double>(static_cast<uint64_t>(seed)))
-      throw std::invalid_argument("--seed must be a non-negative integer");
-    cfg.seed = static_cast<uint64_t>(seed);
-    cfg.bag.storage = args.Str("storage", "mcap");
-    cfg.bag.compression = args.Str("compression", "none");
-    if (args.Has("motion")) {
-      const std::string m = args.Str("motion", "");
-      if (m != "car" && m != "handheld") throw std::invalid_argument("--motion: car | handheld");
-      cfg.world.motion = m == "car" ? MotionKind::kCar : MotionKind::kHandheld;
-      cfg.world.motion_is_default = false;
-    }
-    cfg.world.speed = args.Num("speed", 0.0);
-    if (cfg.world.speed < 0.0 || cfg.world.speed > 40.0)
-      throw std::invalid_argument("--speed must be in [0, 40] m/s");
-    cfg.world.static_time = args.Num("static", 2.5);
-    if (cfg.world.static_time < 0.0) throw std::invalid_argument("--static must be >= 0");
-    cfg.world.moving_start = args.Has("moving-start");
-    if (cfg.world.moving_start && args.Has("static"))
-      throw std::invalid_argument("--moving-start and --static exclude each other");
-    cfg.world.max_rate_deg = args.Num("max-rate", 150.0);
-    cfg.scan.range_noise = args.Num("range-noise", 0.02);
-    cfg.scan.dropout = args.Num("dropout", 0.005);
-    if (cfg.scan.range_noise < 0 || cfg.scan.dropout < 0 || cfg.scan.dropout > 1)
-      throw std::invalid_argument("--range-noise must be >= 0, --dropout in [0, 1]");
-    cfg.scan.max_range = args.Num("max-range", 0.0);
-    cfg.imu_rate = args.Num("imu-rate", 200.0);
-    if (cfg.imu_rate < 50.0 || cfg.imu_rate > 1000.0)
-      throw std::invalid_argument("--imu-rate must be in [50, 1000] Hz");
-    ImuNoise& n = cfg.imu_noise;
-    if (args.Has("no-imu-noise")) n = ImuNoise::Zero();
-    n.gyro_noise = args.Num("gyro-noise", n.gyro_noise);
-    n.accel_noise = args.Num("accel-noise", n.accel_noise);
-    n.gyro_bias_rw = args.Num("gyro-bias-rw", n.gyro_bias_rw);
-    n.accel_bias_rw = args.Num("accel-bias-rw", n.accel_bias_rw);
-    n.gyro_bias_init = args.Num("gyro-bias-init", n.gyro_bias_init);
-    n.accel_bias_init = args.Num("accel-bias-init", n.accel_bias_init);
-    cfg.gravity = args.Num("gravity", 9.81);
-    const auto ex = args.List("extrinsic", 6, {0.2, 0.05, 0.15, 1.0, -1.5, 2.0});
-    cfg.scan.T_imu_lidar = Eigen::Isometry3d::Identity();
-    cfg.scan.T_imu_lidar.translation() = Eigen::Vector3d(ex[0], ex[1], ex[2]);
-    cfg.scan.T_imu_lidar.linear() =
-        EulerToRotation(Eigen::Vector3d(ex[3], ex[4], ex[5]) * M_PI / 180.0);
-    cfg.start_ns = static_cast<int64_t>(std::llround(args.Num("start-time", 1700000000.0) * 1e9));
-    const std::string tf = args.Str("time-field", "driver"), st = args.Str("stamp", "start");
-    if (tf != "driver" && tf != "none" && tf != "abs_f64")
-      throw std::invalid_argument("--time-field: driver | none | abs_f64");
-    if (st != "start" && st != "end") throw std::invalid_argument("--stamp: start | end");
-    if ((tf != "driver" || st != "start") && GetLidarModel(cfg.lidar).layout != PointLayout::kVelodyne)
-      throw std::invalid_argument("--time-field/--stamp apply to velodyne models only");
-    cfg.scan.time_field = tf == "none"      ? ScanOptions::TimeField::kNone
-                          : tf == "abs_f64" ? ScanOptions::TimeField::kAbsoluteF64
-                                            : ScanOptions::TimeField::kDriverDefault;
-    cfg.scan.stamp_at_end = st == "end";
-    cfg.scan.frame_id = args.Str("lidar-frame", "lidar");
-    cfg.imu_frame = args.Str("imu-frame", "imu");
-    cfg.bag.points_topic = args.Str("points-topic", "/points");
-    cfg.bag.imu_topic = args.Str("imu-topic", "/imu");
-    if (args.Has("threads")) {
-      const double threads = args.Num("threads", 1);
-      if (threads < 1 || threads > 256 || threads != static_cast<int>(threads))
-        throw std::invalid_argument("--threads must be an integer >= 1");
-      omp_set_num_threads(static_cast<int>(threads));
-    }
+    ParseSequence(args, &cfg);
+    ParseMotion(args, &cfg.world);
+    ParseLidarNoise(args, &cfg.scan);
+    ParseImu(args, &cfg);
+    ParseMountAndTime(args, &cfg);
+    ParseNames(args, &cfg);
+    ApplyThreads(args);
 
     std::printf("ppf_sim: scene %s, lidar %s, %.1f s, seed %llu -> %s (%s)\n",
                 cfg.world.scene.c_str(), cfg.lidar.c_str(), cfg.world.duration,
                 static_cast<unsigned long long>(cfg.seed), cfg.out_dir.c_str(),
                 cfg.bag.storage.c_str());
-    const SimSummary s = RunSimulation(cfg, std::cout);
-    std::printf("\n%-28s %10s\n", "stage", "seconds");
-    std::printf("%-28s %10.3f\n", "world (scene + trajectory)", s.seconds_world);
-    std::printf("%-28s %10.3f\n", "imu synthesis", s.seconds_imu);
-    std::printf("%-28s %10.3f\n", "ray casting (scans)", s.seconds_scans);
-    std::printf("%-28s %10.3f\n", "serialize + write bag", s.seconds_write);
-    std::printf("%-28s %10.3f\n", "total incl. ground truth", s.seconds_total);
-    std::printf("\n%d scans, %.0f points/scan, %d IMU samples, %.1f MB payload, %.1f ms/scan\n",
-                s.scans, s.scans ? static_cast<double>(s.points) / s.scans : 0.0, s.imu_samples,
-                s.bytes / 1e6, s.scans ? 1e3 * s.seconds_total / s.scans : 0.0);
+    PrintSummary(RunSimulation(cfg, std::cout));
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "ppf_sim: error: %s\n", e.what());

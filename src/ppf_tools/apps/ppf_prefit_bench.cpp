@@ -6,20 +6,21 @@
 //   options: --scans N --reps N --threads N (only this thread count) --seed S
 //            --voxel M (scan voxel grid, 0.5; 0 = full resolution as in the paper's KITTI runs)
 //
-// Scans are ray-cast from a simulated HDL-64E (64 beams, +2..-24.8 deg, 0.18 deg azimuth steps,
-// 120 m, 2 cm range noise) driving 1 m per scan down an urban street: ground, 15 cm sidewalks,
-// building blocks at varying setbacks with cross streets, parked cars, poles, tree trunks, and
-// tree crowns and hedges that return scattered points. Each
-// scan is downsampled with the core's 0.5 m voxel grid (the pipeline's input to PPF). Incremental
-// guesses come from the skeleton window moved by a "predicted" pose ~3 cm / 0.2 deg off the truth,
-// as an IMU prediction would be. The first scan (cold start, no window yet) is not counted.
+// Scans come from ppf_sim's generator, the one behind every simulated sequence: its urban scene
+// (street blocks, sidewalks, parked cars, poles, trees) driven by car at 10 m/s from the first
+// scan on (--moving-start), cast with its HDL-64E model (64 beams, +2..-24.9 deg, 2083 columns,
+// 120 m, 2 cm range noise). The generator's points are each in the LiDAR frame of their own
+// firing time; they are de-skewed to the scan start with the true trajectory, as the pipeline
+// de-skews with the IMU before pre-fitting. Each scan is downsampled with the core's 0.5 m voxel
+// grid (the pipeline's input to PPF). Incremental guesses come from the skeleton window moved by
+// a "predicted" pose ~3 cm / 0.2 deg off the truth, as an IMU prediction would be. The first scan
+// (cold start, no window yet) is not counted.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -33,132 +34,58 @@
 #include "ppf_core/ppf_config.hpp"
 #include "ppf_core/skeleton_window.hpp"
 #include "ppf_core/voxel_map.hpp"
+#include "ppf_sim/lidar_model.hpp"
+#include "ppf_sim/scan_generator.hpp"
+#include "ppf_sim/world.hpp"
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-struct Box {
-  Eigen::Vector3d lo, hi;
-};
-struct Cylinder {  // vertical
-  Eigen::Vector2d c;
-  double r, z0, z1;
-};
-struct Sphere {  // tree crown: returns scatter inside the crown
-  Eigen::Vector3d c;
-  double r;
+// The simulated drive: world, sensor mount and the LiDAR pose at each scan start.
+struct Drive {
+  ppf::sim::World world;
+  Eigen::Isometry3d T_imu_lidar = ppf::sim::DefaultImuLidarExtrinsic();
+  Eigen::Isometry3d LidarPose(double t) const { return world.trajectory.Pose(t) * T_imu_lidar; }
 };
 
-struct Scene {
-  std::vector<Box> boxes;
-  std::vector<Cylinder> poles;
-  std::vector<Sphere> crowns;
-};
-
-Scene MakeStreet(unsigned seed) {
-  Scene s;
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> uni(0.0, 1.0);
-  // Building blocks: 32 m long, 8 m cross streets; each block's facade sits at its own setback,
-  // so consecutive blocks are distinct (parallel) planes.
-  for (double x = -60; x < 400; x += 40) {
-    const double yl = 10.0 + 3.0 * uni(rng), yr = -12.0 - 3.0 * uni(rng);
-    s.boxes.push_back({{x, yl, 0}, {x + 32, yl + 15, 12 + 6 * uni(rng)}});
-    s.boxes.push_back({{x + 4, yr - 15, 0}, {x + 36, yr, 10 + 8 * uni(rng)}});
-  }
-  // Sidewalks: 15 cm curbs, i.e. planes parallel to the road inside its semi-inlier band.
-  s.boxes.push_back({{-100, 8.0, 0}, {500, 30, 0.15}});
-  s.boxes.push_back({{-100, -35, 0}, {500, -10.0, 0.15}});
-  // Parked cars along both curbs.
-  for (double x = -60; x < 400; x += 7 + 6 * uni(rng)) {
-    if (uni(rng) < 0.3) continue;
-    const double y = uni(rng) < 0.5 ? 6.0 : -9.5;
-    s.boxes.push_back({{x, y, 0}, {x + 4.5, y + 1.8, 1.5}});
-  }
-  // Poles, trees (crowns return scatter) and hedges on the sidewalks.
-  for (double x = -60; x < 400; x += 10) {
-    s.poles.push_back({{x + 3, 8.8}, 0.15, 0, 6});
-    s.poles.push_back({{x + 8, -10.5}, 0.25, 0, 4});  // tree trunks
-    s.crowns.push_back({{x + 8 + 2 * uni(rng), -10.5, 5.0}, 2.5});
-    if (uni(rng) < 0.7) s.crowns.push_back({{x + 2 + 4 * uni(rng), 9.2, 4.5}, 2.2});
-    if (uni(rng) < 0.5) s.crowns.push_back({{x + 6 * uni(rng), 9.0, 0.6}, 0.9});  // hedge
-  }
-  return s;
+Drive MakeDrive(unsigned seed, int scans) {
+  ppf::sim::WorldOptions wo;
+  wo.scene = "urban";
+  wo.seed = seed;
+  wo.duration = 0.1 * scans + 1.0;
+  wo.moving_start = true;
+  Drive d;
+  d.world = ppf::sim::BuildWorld(wo);
+  return d;
 }
 
-// Nearest hit along o + t d (d unit), t in (0, t_max); returns t or t_max if none.
-double CastRay(const Scene& s, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_max,
-               std::mt19937* rng) {
-  double best = t_max;
-  if (d.z() < -1e-9) best = std::min(best, -o.z() / d.z());  // ground z = 0
-  for (const Box& b : s.boxes) {
-    double t0 = 0.0, t1 = best;
-    bool hit = true;
-    for (int k = 0; k < 3 && hit; ++k) {
-      if (std::abs(d[k]) < 1e-12) {
-        if (o[k] < b.lo[k] || o[k] > b.hi[k]) hit = false;
-        continue;
-      }
-      double ta = (b.lo[k] - o[k]) / d[k], tb = (b.hi[k] - o[k]) / d[k];
-      if (ta > tb) std::swap(ta, tb);
-      t0 = std::max(t0, ta);
-      t1 = std::min(t1, tb);
-      if (t0 > t1) hit = false;
-    }
-    if (hit && t0 > 1e-6 && t0 < best) best = t0;
-  }
-  for (const Cylinder& c : s.poles) {
-    const Eigen::Vector2d oc = o.head<2>() - c.c, dd = d.head<2>();
-    const double a = dd.squaredNorm(), bq = oc.dot(dd), cq = oc.squaredNorm() - c.r * c.r;
-    const double disc = bq * bq - a * cq;
-    if (a < 1e-12 || disc < 0) continue;
-    const double t = (-bq - std::sqrt(disc)) / a;
-    const double z = o.z() + t * d.z();
-    if (t > 1e-6 && t < best && z >= c.z0 && z <= c.z1) best = t;
-  }
-  std::uniform_real_distribution<double> uni(0.0, 1.0);
-  for (const Sphere& c : s.crowns) {
-    const Eigen::Vector3d oc = o - c.c;
-    const double bq = oc.dot(d), cq = oc.squaredNorm() - c.r * c.r, disc = bq * bq - cq;
-    if (disc < 0) continue;
-    const double t_in = -bq - std::sqrt(disc);
-    // Foliage: half the rays pass through; the others stop somewhere inside the crown.
-    if (t_in > 1e-6 && t_in < best && uni(*rng) < 0.5) best = t_in + 2.0 * c.r * uni(*rng) * 0.5;
-  }
-  return best;
-}
-
-// One HDL-64E-like scan from pose T_world_lidar, in the LiDAR frame.
-std::vector<Eigen::Vector3f> ScanHdl64(const Scene& s, const Eigen::Isometry3d& T_world_lidar,
-                                       std::mt19937* rng) {
-  const int beams = 64, steps = 2000;
-  const double max_range = 120.0;
-  std::normal_distribution<double> noise(0.0, 0.02);
+// Scan k in the LiDAR frame at the scan start (see the header comment).
+std::vector<Eigen::Vector3f> DeskewedScan(const ppf::sim::ScanGenerator& gen, const Drive& drive,
+                                          int k) {
+  const ppf::sim::CloudBuffer cloud = gen.Generate(k);
+  const ppf::sim::PointFieldDesc* fx = cloud.Field("x");
+  const ppf::sim::PointFieldDesc* fy = cloud.Field("y");
+  const ppf::sim::PointFieldDesc* fz = cloud.Field("z");
+  const ppf::sim::PointFieldDesc* ft = cloud.Field("time");
+  const double t_start = k * gen.period();
+  const Eigen::Isometry3d T_start_world = drive.LidarPose(t_start).inverse();
   std::vector<Eigen::Vector3f> pts;
-  pts.reserve(beams * steps);
-  const Eigen::Vector3d o = T_world_lidar.translation();
-  const Eigen::Matrix3d R = T_world_lidar.linear();
-  for (int b = 0; b < beams; ++b) {
-    const double el = (2.0 - 26.8 * b / (beams - 1)) * M_PI / 180.0;
-    for (int a = 0; a < steps; ++a) {
-      const double az = 2.0 * M_PI * a / steps;
-      const Eigen::Vector3d d_l(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
-                                std::sin(el));
-      const double t = CastRay(s, o, R * d_l, max_range, rng);
-      if (t >= max_range || t < 1.0) continue;
-      pts.push_back(((t + noise(*rng)) * d_l).cast<float>());
+  pts.reserve(cloud.num_points());
+  // A column's points share one firing time: one pose per column, not per point.
+  float t_column = -1.0f;
+  Eigen::Isometry3d T_start_point = Eigen::Isometry3d::Identity();
+  for (size_t i = 0; i < cloud.num_points(); ++i) {
+    const float t = cloud.Get<float>(i, *ft);
+    if (i == 0 || t != t_column) {
+      T_start_point = T_start_world * drive.LidarPose(t_start + t);
+      t_column = t;
     }
+    const Eigen::Vector3d p(cloud.Get<float>(i, *fx), cloud.Get<float>(i, *fy),
+                            cloud.Get<float>(i, *fz));
+    pts.push_back((T_start_point * p).cast<float>());
   }
   return pts;
-}
-
-Eigen::Isometry3d PoseAt(int scan) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() =
-      Eigen::AngleAxisd(0.03 * std::sin(scan / 3.0), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  T.translation() = Eigen::Vector3d(1.0 * scan, -1.0 + 0.2 * std::sin(scan / 5.0), 1.73);
-  return T;
 }
 
 struct Options {
@@ -223,15 +150,21 @@ int main(int argc, char** argv) {
     }
   }
 
-  // Generate the downsampled scans once (not timed).
-  const Scene scene = MakeStreet(opt.seed);
-  std::mt19937 rng(opt.seed);
+  // Generate the downsampled scans and their true poses once (not timed).
+  const Drive drive = MakeDrive(opt.seed, opt.scans);
+  ppf::sim::ScanOptions so;
+  so.seed = opt.seed;
+  so.T_imu_lidar = drive.T_imu_lidar;
+  const ppf::sim::ScanGenerator gen(drive.world.scene, drive.world.trajectory,
+                                    ppf::sim::GetLidarModel("hdl64"), so);
   std::vector<std::vector<Eigen::Vector3f>> scans;
+  std::vector<Eigen::Isometry3d> poses;
   double raw_points = 0;
   for (int k = 0; k < opt.scans; ++k) {
-    const auto raw = ScanHdl64(scene, PoseAt(k), &rng);
+    const auto raw = DeskewedScan(gen, drive, k);
     raw_points += raw.size();
     scans.push_back(opt.voxel > 0 ? ppf::VoxelDownsample(raw, opt.voxel) : raw);
+    poses.push_back(drive.LidarPose(k * gen.period()));
   }
   double ds_points = 0;
   for (const auto& s : scans) ds_points += s.size();
@@ -264,7 +197,7 @@ int main(int argc, char** argv) {
         err.linear() =
             Eigen::AngleAxisd(0.0035, Eigen::Vector3d(0.3, 0.2, 1).normalized()).toRotationMatrix();
         err.translation() = Eigen::Vector3d(0.02, -0.015, 0.01);
-        const auto guesses = window.GuessesInFrame(PoseAt(k) * err);
+        const auto guesses = window.GuessesInFrame(poses[k] * err);
         ppf::PrefitResult r;
         std::vector<double> reps;
         for (int rep = 0; rep < opt.reps; ++rep) {
@@ -272,7 +205,7 @@ int main(int argc, char** argv) {
           prefitter.Fit(scans[k], guesses, &r);
           reps.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
         }
-        window.Update(r.planes, PoseAt(k));
+        window.Update(r.planes, poses[k]);
         if (k == 0) continue;  // cold start
         row.ms.push_back(Percentile(reps, 0.5));
         row.points += scans[k].size();

@@ -150,6 +150,8 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("lidar_only.offset_deg", &c->lidar_only.offset_deg);
   t.Add("lidar_only.prior_rot_std", &c->lidar_only.prior_rot_std);
   t.Add("lidar_only.prior_pos_std", &c->lidar_only.prior_pos_std);
+  t.Add("lidar_only.redeskew_iterations", &c->lidar_only.redeskew_iterations);
+  t.Add("lidar_only.redeskew_min_change", &c->lidar_only.redeskew_min_change);
 
   t.Add("iekf.max_iterations", &c->iekf.max_iterations);
   t.Add("iekf.convergence_rot", &c->iekf.convergence_rot_rad);
@@ -255,6 +257,10 @@ std::vector<std::string> ValidateConfig(Config* c) {
       15.0);
   fix(!(lo->prior_rot_std > 0.0), "lidar_only.prior_rot_std", &lo->prior_rot_std, 0.05);
   fix(!(lo->prior_pos_std > 0.0), "lidar_only.prior_pos_std", &lo->prior_pos_std, 0.1);
+  fix(lo->redeskew_iterations < 0 || lo->redeskew_iterations > 10, "lidar_only.redeskew_iterations",
+      &lo->redeskew_iterations, 0);
+  fix(!(lo->redeskew_min_change >= 0.0), "lidar_only.redeskew_min_change",
+      &lo->redeskew_min_change, 0.002);
   fix(!(c->init.duration_s >= 0.0), "imu.init_duration", &c->init.duration_s, 1.0);
   fix(c->init.min_samples < 2, "imu.init_min_samples", &c->init.min_samples, 2);
   fix(!(c->init.moving_start_window_s >= 0.3 && c->init.moving_start_window_s <= 10.0),

@@ -63,6 +63,8 @@ void LioPpf::Impl::ResetFilter(const std::string& reason) {
   fallback_scan = false;
   fallback_seeded = false;
   imu_back = false;
+  late_imu = false;
+  world_is_map = false;
   if (splitter) splitter->Reset();
   for (auto& p : extra) p->Reset();
   knn->Reset();
@@ -81,6 +83,9 @@ void LioPpf::Impl::ResetFilter(const std::string& reason) {
 
 void LioPpf::Impl::AddImu(const ImuSample& s) {
   // kNone: ignored even before the first scan has made the decision (DecideImuMode).
+  const bool finite = std::isfinite(s.stamp_s) && s.angular_velocity.allFinite() &&
+                      s.linear_acceleration.allFinite();
+  if (lidar_only && lidar_only_auto && finite) StartLateImu(s);
   if (lidar_only || config.imu_mode == ImuMode::kNone) {
     ++ignored_imu;
     return;
@@ -91,8 +96,7 @@ void LioPpf::Impl::AddImu(const ImuSample& s) {
       Log(LogLevel::kInfo, "IMU data present: LiDAR-inertial mode");
     }
   }
-  if (!std::isfinite(s.stamp_s) || !s.angular_velocity.allFinite() ||
-      !s.linear_acceleration.allFinite()) {
+  if (!finite) {
     ++dropped_imu;
     return;
   }
@@ -154,8 +158,10 @@ void LioPpf::Impl::AddImu(const ImuSample& s) {
     }
     if (st == ImuInitializer::State::kDone) StartFilter();
   }
-  // Bounded buffer even if no scan ever arrives.
-  while (imu.size() > 2 && imu[1].stamp_s < state.stamp_s - 1.0 && initialized) imu.pop_front();
+  // Bounded buffer even if no scan ever arrives (a moving-start window trims its own).
+  while (imu.size() > 2 && imu[1].stamp_s < state.stamp_s - 1.0 && initialized && !moving_init) {
+    imu.pop_front();
+  }
   while (imu.size() > 20000) imu.pop_front();
 }
 
@@ -258,6 +264,7 @@ bool LioPpf::Impl::DecideImuMode(bool flush) {
     if (!flush && span < config.imu_auto_wait_s) return false;
   }
   lidar_only = true;
+  lidar_only_auto = !none;
   initialized = true;
   imu.clear();
   std::ostringstream os;
@@ -265,6 +272,30 @@ bool LioPpf::Impl::DecideImuMode(bool flush) {
      << ": LiDAR-only mode (constant-velocity prediction, world = first scan's LiDAR frame)";
   Log(LogLevel::kInfo, os.str());
   return true;
+}
+
+// Late IMU (lio_ppf.hpp): the first valid sample after imu.mode auto decided LiDAR-only. The
+// scans keep being registered LiDAR-only in the same map while the moving-start window (of
+// scans after this sample) estimates gravity, velocity and gyro bias; the static
+// initialization is not used, it would start a new world.
+void LioPpf::Impl::StartLateImu(const ImuSample& s) {
+  lidar_only = false;
+  lidar_only_auto = false;
+  lio_decided = true;
+  late_imu = true;
+  late_imu_from_s = s.stamp_s;
+  moving_init = true;
+  moving_refused = true;
+  moving_poses.clear();
+  // The map is built: no warm-up, but the scan in flight may begin before this sample.
+  moving_scans = kMovingWarmupScans - 1;
+  last_imu_stamp = s.stamp_s;  // no gap to the (absent) previous sample
+  imu.clear();
+  std::ostringstream os;
+  os << "IMU data at t=" << s.stamp_s << " after a LiDAR-only start: LiDAR-inertial once "
+     << config.init.moving_start_window_s
+     << " s of scans estimate gravity in the LiDAR-only world (kept: no reset, no jump)";
+  Log(LogLevel::kInfo, os.str());
 }
 
 LioPpf::LioPpf(const Config& config) : impl_(std::make_unique<Impl>(config)) {}

@@ -63,6 +63,7 @@ struct LioPpf::Impl {
   std::vector<ScanResult> Process(bool flush);
   bool DecideImuMode(bool flush);
   bool NeedsFallback(const DecodedScan& scan, bool may_declare);
+  void StartLateImu(const ImuSample& s);
   void EnterImuLoss(const std::string& why);
 
   // lio_ppf_process.cpp: one scan.
@@ -99,6 +100,7 @@ struct LioPpf::Impl {
   void SetLidarOnlyPrior();
   void PredictGyro(double t_end, PoseTrace* trace);
   CoarseAlignment AlignGuesses(double t_end);
+  void RedeskewLidarOnly(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end);
 
   Config config;
   TimeFieldDecoder decoder;
@@ -122,6 +124,14 @@ struct LioPpf::Impl {
   bool initialized = false;
   bool map_initialized = false;
   bool lidar_only = false;   // decided: no IMU (DecideImuMode)
+  bool lidar_only_auto = false;  // ... by imu.mode auto: IMU samples arriving later start LIO
+  // Late IMU: LIO starting from a LiDAR-only start. The moving-start window runs on the
+  // LiDAR-only map and world (no reset), and its scans' results stay valid LiDAR-only poses.
+  bool late_imu = false;
+  double late_imu_from_s = 0.0;  // ... its first sample: scans that begin earlier stay out
+  // The world is the LiDAR-only start's (first scan's LiDAR frame), not turned to gravity once
+  // the IMU is known: the published pose goes on without a jump (WorldFromMap).
+  bool world_is_map = false;
   bool lio_decided = false;  // decided: the IMU predicts
   // Moving start (moving_start.hpp): scans are registered LiDAR-only until the window is full.
   bool moving_init = false;

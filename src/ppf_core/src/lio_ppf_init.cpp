@@ -51,6 +51,13 @@ void LioPpf::Impl::MovingInitStep(ScanResult* r) {
   if (!moving_init) return;  // the IMU initialized statically meanwhile
   if (r->status == Status::kReset || r->status == Status::kRejected) return;
   if (r->status == Status::kInitializing && !map_initialized) return;  // empty first scan
+  // Late IMU: a scan that began before the first sample (the core behind the IMU stream, its
+  // queued scans older than the samples fed meanwhile) has no IMU for its motion, and a window
+  // starting with it would fail ("IMU does not cover the registered scans") and start again.
+  if (late_imu && r->scan_begin_s < late_imu_from_s) {
+    SetMovingInitResult(r);
+    return;
+  }
   const bool poor_fit = r->fit < config.lidar_only.min_fit;
   const bool skipped =
       r->knn_residuals + r->skeleton_residuals < static_cast<size_t>(config.iekf.min_rows);
@@ -78,6 +85,8 @@ void LioPpf::Impl::MovingInitStep(ScanResult* r) {
   while (moving_poses.size() > 2 && pose.t - moving_poses[1].t + 1e-6 >= window) {
     moving_poses.erase(moving_poses.begin());
   }
+  // Late IMU: the window slides over a map that lives on; keep only the samples it spans.
+  while (late_imu && imu.size() > 2 && imu[1].stamp_s <= moving_poses.front().t) imu.pop_front();
   if (!moving_refused || pose.t - moving_poses.front().t + 1e-6 < window) {
     SetMovingInitResult(r);
     return;
@@ -94,19 +103,39 @@ void LioPpf::Impl::MovingInitStep(ScanResult* r) {
     SetMovingInitResult(r);
     return;
   }
+  const bool late = late_imu;
   StartFilterMoving(e);
-  // This scan's pose is the filter's first: report it in the now gravity-aligned world.
-  r->status = Status::kOk;
-  r->pose_valid = true;
   std::ostringstream os;
   os.precision(4);
   os << "moving-start initialization: |g| free " << e.gravity_norm_free << " m/s^2 (+-"
      << e.gravity_sigma << "), speed " << e.velocity_map.norm() << " m/s";
+  if (late) {
+    // The scan was registered LiDAR-only and reported so; its pose stands, in the same world.
+    r->lidar_only = false;
+    r->lio_started_late = true;
+    Append(&r->reason, "IMU after a LiDAR-only start: LIO from here, " + os.str());
+    FillState(r);
+    return;
+  }
+  // This scan's pose is the filter's first: report it in the now gravity-aligned world.
+  r->status = Status::kOk;
+  r->pose_valid = true;
   r->reason = os.str();
   FillState(r);
 }
 
 void LioPpf::Impl::SetMovingInitResult(ScanResult* r) const {
+  if (late_imu) {
+    // A valid LiDAR-only pose in the world it always had: it stays one.
+    std::ostringstream os;
+    os.precision(3);
+    const double span =
+        moving_poses.empty() ? 0.0 : moving_poses.back().t - moving_poses.front().t;
+    os << "IMU after a LiDAR-only start: estimating gravity, " << span << " of "
+       << config.init.moving_start_window_s << " s";
+    Append(&r->reason, os.str());
+    return;
+  }
   r->status = Status::kInitializing;
   r->pose_valid = false;
   if (!moving_refused) {
@@ -125,6 +154,12 @@ void LioPpf::Impl::SetMovingInitResult(ScanResult* r) const {
 // Starts the window again from the next scan with a new map (its frame is that scan's).
 void LioPpf::Impl::RestartMovingInit(const std::string& why) {
   Log(LogLevel::kWarn, "moving-start initialization restarts: " + why);
+  if (late_imu) {
+    // The LiDAR-only map and world stay: only the window starts again.
+    moving_poses.clear();
+    moving_scans = kMovingWarmupScans - 1;
+    return;
+  }
   ClearMovingInit();
 }
 
@@ -169,6 +204,10 @@ void LioPpf::Impl::StartFilterMoving(const MovingStartEstimate& e) {
   initialized = true;
   moving_poses.clear();
   moving_scans = 0;
+  if (late_imu) {
+    late_imu = false;
+    world_is_map = true;
+  }
   const Eigen::Vector3d up = -e.gravity_map.normalized();
   const Eigen::Vector3d up_first_imu = (state.R_world_imu.transpose() * up);
   std::ostringstream os;

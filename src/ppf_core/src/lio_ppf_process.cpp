@@ -22,6 +22,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   r.map_size = map.size();
   // The moving-start initialization registers its scans as LiDAR-only does.
   const bool lidar = lidar_only || moving_init || fallback_scan;
+  r.lidar_only = lidar_only || late_imu;
   if (!AcceptScan(scan, lidar, &r)) return r;
   if (fallback_scan) {
     SeedFallback();
@@ -68,6 +69,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   if (lidar) {
     t0 = Clock::now();
     coarse = AlignGuesses(t_end);
+    RedeskewLidarOnly(scan, pts, t_end);
     r.timings.guesses = MsSince(t0);
   }
   SplitScan(&r);
@@ -134,7 +136,11 @@ double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* t
   const double t_end = std::max(scan.t_end, state.stamp_s);
   if (lidar) {
     PredictConstantVelocity(t_end, trace);
-    if (moving_init && motion.has_pose()) PredictGyro(t_end, trace);
+    // Not from samples held across a stalled IMU stream: the model's turn is better then.
+    if (moving_init && motion.has_pose() && last_imu_stamp >= t_end - config.max_imu_gap_s &&
+        !(late_imu && motion.stamp() < late_imu_from_s)) {
+      PredictGyro(t_end, trace);
+    }
   } else {
     std::vector<ImuSample> samples(imu.begin(), imu.end());
     PropagateImu(samples, t_end, acc_scale, config.noise, &state, trace);
@@ -246,6 +252,7 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
   imu_back = false;
   fallback_seeded = false;
   r->imu_gap_s = imu_loss_gap_s;
+  r->lio_resumed = true;
   std::ostringstream os;
   os << "IMU back: LIO resumed after " << imu_loss_gap_s << " s without IMU (LiDAR-only meanwhile)";
   Append(&r->reason, os.str());
@@ -344,6 +351,7 @@ void LioPpf::Impl::ExtendMap(const IekfReport& rep, const Eigen::Isometry3d& T_w
 // so yaw is kept.
 Eigen::Isometry3d LioPpf::Impl::WorldFromMap() const {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  if (world_is_map) return T;  // late IMU: the LiDAR-only start's world goes on
   T.linear() = Eigen::Quaterniond::FromTwoVectors(state.gravity_world.normalized(),
                                                   -Eigen::Vector3d::UnitZ())
                    .toRotationMatrix();

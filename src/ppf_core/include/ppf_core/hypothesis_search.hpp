@@ -47,6 +47,15 @@ struct LidarOnlyOptions {
   // Prior of the fine update about the coarse pose (1 sigma).
   double prior_rot_std = 0.05;  // rad
   double prior_pos_std = 0.1;   // m
+  // De-skew again after the coarse alignment, with the motion interpolated between the last
+  // registered pose and the aligned one, then update again (kNN, from that pose): this many
+  // times at most (0 = off), fewer once the pose moves less than redeskew_min_change.
+  // The constant-velocity de-skew extrapolates the previous interval's twist; a hand-held turn
+  // rate changes by tens of deg/s within one scan interval, a de-skew error of degrees. Off by
+  // default: on car-like motion, which the model already de-skews well, the extra updates made
+  // the poses noisier (README, LiDAR-only); 2 for a hand-held sensor.
+  int redeskew_iterations = 0;
+  double redeskew_min_change = 0.002;  // rad and m
 };
 
 struct MotionHypothesis {

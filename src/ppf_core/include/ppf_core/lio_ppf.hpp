@@ -55,8 +55,16 @@
 // frame is the first scan's LiDAR frame (z is the LiDAR's z then, not "up"), T_world_map stays
 // the identity and velocity, biases and gravity are not estimated (velocity_world and
 // angular_velocity report the model's). ScanResult::fit says how well the scan fit the map; a fit
-// below lidar_only.min_fit is Status::kDegenerate with the reason. The mode is decided once per
-// object.
+// below lidar_only.min_fit is Status::kDegenerate with the reason. imu.mode none is decided once
+// per object; ScanResult::lidar_only marks each such scan.
+//
+// Late IMU (kAuto decided LiDAR-only, then IMU samples arrive: a driver that started late): the
+// scans go on being registered LiDAR-only, with the gyro predicting the turn, while the
+// moving-start estimate above runs on their poses in the LiDAR-only map; once it passes, the IMU
+// predicts from that scan on (ScanResult::lio_started_late, one INFO line). No reset and no jump:
+// the map and the world stay the LiDAR-only start's, so z is not "up" in it (T_world_map stays
+// the identity; gravity_map says where down is). For a gravity-aligned world when the IMU may
+// start late, set imu.mode lio (scans then wait for the IMU's static initialization).
 //
 // IMU loss (LIO running): when the IMU stream stops, or delivers only invalid samples, while the
 // scans go on, a scan ending more than Config::imu_loss_timeout_s after the last IMU sample (the
@@ -136,6 +144,16 @@ struct ScanResult {
   // Registered LiDAR-only because the IMU stream is lost mid-run (IMU loss fallback, Config::
   // imu_loss_timeout_s); the reason says so. The first LIO scan after it has imu_gap_s > 0.
   bool imu_lost = false;
+  // The first LIO scan after an IMU loss (the reason says "LIO resumed"; imu_gap_s is the gap).
+  bool lio_resumed = false;
+  // Registered without an IMU because none has come (imu.mode none, or auto that decided none),
+  // including the window in which IMU samples that arrived late are judged (LateImuStart in
+  // lio_ppf.hpp's class comment). Not set for an IMU loss (imu_lost) or a moving start.
+  bool lidar_only = false;
+  // The scan with which the LiDAR-only start became LiDAR-inertial (late IMU): from it on the
+  // IMU predicts, in the same world as before (no jump; its z is not "up", gravity_map says
+  // where down is).
+  bool lio_started_late = false;
 
   // Poses, velocity, planes and covariances are in the gravity-aligned world: z up as the filter
   // now estimates it, origin and yaw of the IMU at initialization. The map is built in the frame

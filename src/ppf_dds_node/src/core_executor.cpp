@@ -55,12 +55,10 @@ std::unique_ptr<LioPpf> CoreExecutor::CreateCore(const NodeConfig& c, std::strin
   if (c.core_mode == "knn") core_config.mode = Mode::kKnn;
   if (c.core_mode == "ppf") core_config.mode = Mode::kPpf;
   core_config.output_deskewed_points = c.publish_registered_points;
-  // imu.mode auto would hold scans for imu.auto_wait and then run LiDAR-only for good, also when
-  // a live IMU driver merely starts late: the core can fall back from LIO to LiDAR-only and back
-  // (IMU loss, imu.loss_timeout), but not start LiDAR-only and switch to LIO, which needs the
-  // IMU's initialization in a new, gravity-aligned world (a jump). So here auto means lio: an
-  // IMU that is lost later is bridged by the fallback. `imu.mode: none` runs the node LiDAR-only.
-  if (core_config.imu_mode == ImuMode::kAuto) core_config.imu_mode = ImuMode::kLio;
+  // imu.mode as in the core (lio_ppf.hpp): auto holds the first scans for imu.auto_wait and runs
+  // LiDAR-only if no IMU sample came meanwhile; an IMU driver that starts later then takes over
+  // without a reset or a jump, in that LiDAR-only world. lio waits for the IMU (a gravity-aligned
+  // world); none ignores it.
   core_config.log = [](LogLevel level, const std::string& msg) {
     const Level l = level == LogLevel::kError  ? Level::kError
                     : level == LogLevel::kWarn ? Level::kWarn
@@ -316,8 +314,7 @@ void CoreExecutor::Publish(const ScanResult& r, const PendingScan& p, double cor
     std::ostringstream os;
     os << std::fixed << std::setprecision(3) << "input gap: no IMU for " << r.imu_gap_s
        << " s before the scan at " << r.stamp_s << "; bridged"
-       << (r.reason.find("LIO resumed") != std::string::npos ? " (LiDAR-only meanwhile, LIO resumed)"
-                                                             : "")
+       << (r.lio_resumed ? " (LiDAR-only meanwhile, LIO resumed)" : "")
        << ", odometry continues (lost so far: "
        << scans_lost << " scans, " << imu_lost << " IMU samples)";
     Log(Level::kWarn, os.str());

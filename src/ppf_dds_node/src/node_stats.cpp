@@ -37,8 +37,13 @@ void NodeStats::CountResult(const ScanResult& r) {
     if (!summary_.imu_fallback_active) ++summary_.imu_fallbacks;
     ++summary_.imu_fallback_scans;
   }
+  if (r.lidar_only) ++summary_.lidar_only_scans;
+  if (r.lio_started_late) ++summary_.lio_started_late;
   // Notices and rejected scans say nothing about the IMU: the episode lasts until a pose says.
-  if (r.pose_valid) summary_.imu_fallback_active = r.imu_lost;
+  if (r.pose_valid) {
+    summary_.imu_fallback_active = r.imu_lost;
+    summary_.lidar_only_active = r.lidar_only;
+  }
 }
 
 void NodeStats::CountNotice(const ScanResult& r) {
@@ -110,6 +115,7 @@ std::string NodeStats::PeriodicLine(size_t* latency_mark, const QueueFill& queue
     << (!stalled.empty() ? "stalled (no data on " + stalled + ")"
                          : (s.last_status.empty() ? "waiting" : s.last_status))
     << (s.imu_fallback_active ? " (IMU lost: LiDAR-only)" : "")
+    << (s.lidar_only_active ? " (no IMU: LiDAR-only)" : "")
     << " scans rx=" << s.scans_received << " proc=" << s.scans_processed
     << " odom=" << s.odometry_published << " dropped=" << s.scans_dropped
     << " malformed=" << s.scans_malformed + s.imu_malformed << " imu rx=" << s.imu_received
@@ -136,6 +142,7 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " imu_duplicate=" << s.imu_duplicate << " imu_outliers=" << s.imu_outliers
     << " imu_gaps_bridged=" << s.imu_gaps_bridged << " imu_gap_max_s=" << s.imu_gap_max_s
     << " imu_fallbacks=" << s.imu_fallbacks << " imu_fallback_scans=" << s.imu_fallback_scans
+    << " lidar_only_scans=" << s.lidar_only_scans << " lio_started_late=" << s.lio_started_late
     << " points_stalls=" << s.points_stalls << " imu_stalls=" << s.imu_stalls
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms

@@ -118,6 +118,7 @@ int main(int argc, char** argv) {
       "  imu        received %llu  malformed %llu  overflow %llu\n"
       "  input      lost scans %llu  lost imu %llu  imu gaps bridged %llu (longest %.3f s)\n"
       "  imu loss   LiDAR-only fallbacks %llu (%llu scans)\n"
+      "  no imu     LiDAR-only scans %llu  LIO started late %llu\n"
       "  stalls     points %llu  imu %llu  (publisher matched, data stopped for "
       "diagnostics.stall_warn_s)\n"
       "  latency    p50 %.2f ms  p99 %.2f ms  (DDS receive -> odometry published)\n"
@@ -131,6 +132,7 @@ int main(int argc, char** argv) {
       (unsigned long long)s.imu_overflow, (unsigned long long)s.scans_lost,
       (unsigned long long)s.imu_lost, (unsigned long long)s.imu_gaps_bridged, s.imu_gap_max_s,
       (unsigned long long)s.imu_fallbacks, (unsigned long long)s.imu_fallback_scans,
+      (unsigned long long)s.lidar_only_scans, (unsigned long long)s.lio_started_late,
       (unsigned long long)s.points_stalls, (unsigned long long)s.imu_stalls, s.latency_p50_ms,
       s.latency_p99_ms, s.core_p50_ms, s.core_p99_ms, s.overhead_p50_ms, s.overhead_p99_ms);
   std::printf("PPF_NODE_SUMMARY %s\n", line.c_str());

@@ -107,8 +107,10 @@ struct NodeRig {
     for (int s = first; s <= scans; ++s) {
       const int64_t scan_end = kT0 + 1500000000LL + s * 100000000LL;
       while (imu_t <= scan_end) {
-        sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(imu_t, seq++);
-        ASSERT_TRUE(imu_w->write(&imu));
+        if (imu_t >= imu_begin) {
+          sensor_msgs::msg::Imu imu = ppf::dds::MakeRestingImu(imu_t, seq++);
+          ASSERT_TRUE(imu_w->write(&imu));
+        }
         imu_t += 5000000;
       }
       std::this_thread::sleep_until(wall0 + std::chrono::nanoseconds(scan_end - t_begin));
@@ -139,6 +141,7 @@ struct NodeRig {
   fdds::DataWriter* imu_w = nullptr;
   sensor_msgs::msg::PointCloud2 cloud = Vlp16RoomScan();
   int64_t imu_t = 0;  // the next IMU stamp
+  int64_t imu_begin = 0;  // Drive writes no IMU sample stamped before this: a driver starting late
   uint64_t seq = 0;   // IMU samples sent
 };
 

@@ -327,6 +327,42 @@ TEST(NodeProcess, MatchedButSilentInputIsReportedAsStalledCountedAndClearsWhenDa
   rig.RemoveDirUnless(HasFailure());
 }
 
+// A node that receives no IMU (imu.mode auto, the default) holds the first imu.auto_wait (2 s)
+// of scans, then registers them LiDAR-only and says so; when the IMU driver starts 2.5 s later,
+// LIO takes over without a reset or a jump (the room is static: every pose stays where the
+// first was).
+TEST(NodeProcess, NoImuRunsLidarOnlyAndALateImuTakesOverWithoutJump) {
+  NodeRig rig(15);
+  ASSERT_NO_FATAL_FAILURE(
+      rig.Start("queues: {scan_capacity: 100}\ndiagnostics: {period_s: 0.5}\n"));
+  const int kScans = 70;
+  rig.imu_begin = ppf::test::kT0 + 4000000000LL;
+  ASSERT_NO_FATAL_FAILURE(rig.Drive(kScans));
+  WaitUntil([&] { return rig.odom.Count() >= static_cast<size_t>(kScans); }, 20s);
+  std::this_thread::sleep_for(300ms);
+  std::string line;
+  ASSERT_NO_FATAL_FAILURE(rig.Stop(&line));
+  const std::string l = ReadTextFile(rig.log);
+  EXPECT_EQ(CountLinesWith(l, "no IMU data with the first scans: LiDAR-only mode"), 1) << rig.log;
+  EXPECT_GE(CountLinesWith(l, "status=ok (no IMU: LiDAR-only) "), 1) << rig.log;
+  EXPECT_EQ(CountLinesWith(l, "after a LiDAR-only start: LiDAR-inertial once"), 1) << rig.log;
+  EXPECT_EQ(SummaryField(line, "odometry_published"), static_cast<double>(kScans));
+  EXPECT_EQ(SummaryField(line, "resets"), 0.0);
+  EXPECT_EQ(SummaryField(line, "lio_started_late"), 1.0);
+  EXPECT_GE(SummaryField(line, "lidar_only_scans"), 25.0);  // 2.5 s of scans before the IMU
+  EXPECT_LE(SummaryField(line, "lidar_only_scans"), 45.0);  // and its 1.5 s window
+  const auto poses = rig.odom.Samples();
+  ASSERT_FALSE(poses.empty());
+  const auto& p0 = poses.front().pose().pose().position();
+  double max_move = 0.0;
+  for (const auto& o : poses) {
+    const auto& p = o.pose().pose().position();
+    max_move = std::max(max_move, std::hypot(p.x() - p0.x(), p.y() - p0.y(), p.z() - p0.z()));
+  }
+  EXPECT_LT(max_move, 0.05);
+  rig.RemoveDirUnless(HasFailure());
+}
+
 // `points` points of `scan` over and over, as x, y, z, intensity (16 bytes a point, as many
 // dense drivers send): a real cloud, not just a declared size.
 sensor_msgs::msg::PointCloud2 TiledCloud(const sensor_msgs::msg::PointCloud2& scan,

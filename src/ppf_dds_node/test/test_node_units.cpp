@@ -49,6 +49,27 @@ TEST(NodeStats, ImuFallbackEpisodesAreCountedAndShownInTheStatusLine) {
             std::string::npos);
 }
 
+// No IMU at all (imu.mode auto decided none): the status line says so while the poses are
+// LiDAR-only, the summary counts those scans and the late IMU's takeover.
+TEST(NodeStats, LidarOnlyScansAndALateImuAreCountedAndShownInTheStatusLine) {
+  NodeStats stats;
+  ScanResult r;
+  r.status = Status::kOk;
+  r.pose_valid = true;
+  r.lidar_only = true;
+  size_t mark = 0;
+  stats.CountResult(r);
+  stats.CountResult(r);
+  EXPECT_NE(stats.PeriodicLine(&mark, QueueFill(), "").find("status=ok (no IMU: LiDAR-only) "),
+            std::string::npos);
+  r.lidar_only = false;
+  r.lio_started_late = true;
+  stats.CountResult(r);
+  EXPECT_EQ(stats.PeriodicLine(&mark, QueueFill(), "").find("no IMU"), std::string::npos);
+  EXPECT_NE(NodeStats::FormatSummary(stats.Snapshot()).find(" lidar_only_scans=2 lio_started_late=1 "),
+            std::string::npos);
+}
+
 TEST(NodeConfig, EmptyYamlGivesDocumentedDefaults) {
   NodeConfig c;
   const auto r = LoadNodeConfigString("", &c);

@@ -47,6 +47,12 @@ struct NodeSummary {
   uint64_t imu_fallbacks = 0;
   uint64_t imu_fallback_scans = 0;
   bool imu_fallback_active = false;
+  // Scans registered without an IMU because none has come (imu.mode none, or auto after
+  // imu.auto_wait of scans without one); while the last pose was one, the status line says
+  // "no IMU: LiDAR-only". An IMU that starts later takes over (lio_started_late: 1).
+  uint64_t lidar_only_scans = 0;
+  bool lidar_only_active = false;
+  uint64_t lio_started_late = 0;
   // Episodes of silence on a stream with a matched publisher, after data had flowed on it
   // (diagnostics.stall_warn_s): the data stopped while matching said all was well.
   uint64_t points_stalls = 0;

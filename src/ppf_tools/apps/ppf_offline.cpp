@@ -48,6 +48,10 @@ Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) or a ROS 1 .bag wi
   --imu-gap S L         drop the IMU samples from S to S+L seconds after the first message (an
                         IMU dropout, like the node test peer's --imu-gap; the core continues
                         LiDAR-only meanwhile, imu.loss_timeout)
+  --drop-scans K [S L]  drop every K-th scan (K >= 2; 2 drops half) before the core sees it, as a
+                        node starved of CPU drops them; with S L only the scans from S to S+L
+                        seconds after the first message (with --imu-gap: scans lost during an
+                        IMU dropout)
   --threads N           OpenMP threads for the core (default: config, else all cores)
   --dump-scan N         write scan N's registered points and skeleton planes (N counts every
                         scan result in bag order from 0; the scan must have a pose) to
@@ -72,6 +76,8 @@ struct Args {
   int threads = -1;
   long dump_scan = -1;
   double imu_gap_begin = 0.0, imu_gap_length = 0.0;
+  int drop_every = 0;
+  double drop_begin = 0.0, drop_length = 0.0;
   bool quiet = false;
   bool read_only = false;
 };
@@ -120,6 +126,21 @@ Args ParseArgs(int argc, char** argv) {
       if (b.empty() || l.empty() || *end_b != '\0' || *end_l != '\0' || !(a.imu_gap_begin >= 0) ||
           !(a.imu_gap_length > 0)) {
         Fail("--imu-gap needs START >= 0 and LENGTH > 0 in seconds");
+      }
+    } else if (arg == "--drop-scans") {
+      const std::string k = value(i);
+      char* end = nullptr;
+      a.drop_every = static_cast<int>(std::strtol(k.c_str(), &end, 10));
+      if (k.empty() || *end != '\0' || a.drop_every < 2) Fail("--drop-scans needs K >= 2");
+      // An optional window: two numbers follow.
+      if (i + 2 < argc && argv[i + 1][0] != '-') {
+        const std::string b = value(i), l = value(i);
+        char *end_b = nullptr, *end_l = nullptr;
+        a.drop_begin = std::strtod(b.c_str(), &end_b);
+        a.drop_length = std::strtod(l.c_str(), &end_l);
+        if (*end_b != '\0' || *end_l != '\0' || !(a.drop_begin >= 0) || !(a.drop_length > 0)) {
+          Fail("--drop-scans K S L needs START >= 0 and LENGTH > 0 in seconds");
+        }
       }
     } else if (arg == "--threads") {
       a.threads = std::atoi(value(i).c_str());
@@ -336,6 +357,9 @@ int main(int argc, char** argv) {
   options.lidar_frame = args.frame == "lidar";
   options.imu_gap_begin_s = args.imu_gap_begin;
   options.imu_gap_length_s = args.imu_gap_length;
+  options.drop_scans_every = args.drop_every;
+  options.drop_scans_begin_s = args.drop_begin;
+  options.drop_scans_length_s = args.drop_length;
   options.on_topics_resolved = [&](const ppf::tools::BagSourceStats& s) {
     if (!args.quiet) {
       std::cerr << "ppf_offline: " << args.bag << ": " << s.points_topic << " ("

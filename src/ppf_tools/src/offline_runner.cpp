@@ -53,8 +53,18 @@ OfflineRun RunOffline(const std::string& bag_path, const Config& config,
     }
     lio->AddImu(s);
   };
+  uint64_t scans_in_window = 0;
   callbacks.on_scan = [&](const CloudView& v) {
     note_first(v.stamp_s);
+    const double t = v.stamp_s - first_stamp;
+    if (options.drop_scans_every > 1 &&
+        (options.drop_scans_length_s <= 0.0 ||
+         (t >= options.drop_scans_begin_s &&
+          t < options.drop_scans_begin_s + options.drop_scans_length_s)) &&
+        ++scans_in_window % static_cast<uint64_t>(options.drop_scans_every) == 0) {
+      ++run.scans_dropped;
+      return;
+    }
     lio->AddScan(v);
     consume(lio->Process());
   };

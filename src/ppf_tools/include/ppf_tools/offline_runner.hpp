@@ -19,6 +19,7 @@ struct OfflineRun {
   double wall_s = 0.0;
   bool lidar_only = false;  // the core ran without IMU (imu.mode none, or a bag without IMU)
   uint64_t imu_dropped = 0;  // OfflineOptions::imu_gap_*
+  uint64_t scans_dropped = 0;  // OfflineOptions::drop_scans_*
 };
 
 struct OfflineOptions {
@@ -36,6 +37,14 @@ struct OfflineOptions {
   // --imu-gap makes one over DDS). Dropped samples count in OfflineRun::imu_dropped.
   double imu_gap_begin_s = 0.0;
   double imu_gap_length_s = 0.0;
+  // > 1: every drop_scans_every-th scan (counted from the first in the window) never reaches
+  // the core, as when a node starved of CPU drops scans from its queue; 2 drops half. Only
+  // scans from drop_scans_begin_s to drop_scans_begin_s + drop_scans_length_s after the first
+  // message, if drop_scans_length_s > 0, else all. Dropped scans count in
+  // OfflineRun::scans_dropped and yield no result.
+  int drop_scans_every = 0;
+  double drop_scans_begin_s = 0.0;
+  double drop_scans_length_s = 0.0;
 };
 
 // Throws ppf::bag::BagError if the bag cannot be read.

@@ -118,8 +118,12 @@ list_runtime_packages() {
   [ -d install ] || { echo "$0: no install/ tree: build first" >&2; exit 1; }
   local libs own
   own=$(readlink -f install)
+  # ldd fails on the scripts among them (ppf_report: "not a dynamic executable"); through xargs
+  # that was exit 123, which pipefail turned into a failed image build. One file at a time,
+  # a script simply lists nothing.
   libs=$(find -L install -type f \( -perm -u+x -o -name '*.so*' \) -print0 |
-           xargs -0 -r ldd 2>/dev/null | awk '$2 == "=>" && $3 ~ /^\// {print $3}' | sort -u)
+           while IFS= read -r -d '' f; do ldd "$f" 2>/dev/null || true; done |
+           awk '$2 == "=>" && $3 ~ /^\// {print $3}' | sort -u)
   local lib real pkg
   for lib in $libs; do
     real=$(readlink -f "$lib")

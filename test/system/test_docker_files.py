@@ -74,6 +74,21 @@ class DockerfileTest(unittest.TestCase):
         for flag in ("--deps-only", "--no-deps", "--runtime-packages", "--runtime-deps"):
             self.assertIn(flag, script)
 
+    def test_runtime_package_list_of_the_built_tree(self):
+        # The image's build stage runs exactly this on its install tree. It once failed there:
+        # ldd over every executable, ppf_report (a Python script) among them, made xargs exit
+        # 123 and pipefail the whole step.
+        if not os.path.isdir(os.path.join(ROOT, "install", "ppf_dds_node")):
+            self.skipTest("no built install/ tree at the repository root (build first)")
+        import subprocess
+        out = subprocess.run(["bash", "scripts/setup.sh", "--runtime-packages"], cwd=ROOT,
+                             capture_output=True, text=True, timeout=300)
+        self.assertEqual(out.returncode, 0, out.stderr)
+        pkgs = out.stdout.split()
+        self.assertTrue(all(re.fullmatch(r"[a-z0-9][a-z0-9.+-]+", p) for p in pkgs), pkgs)
+        self.assertTrue(any(p.startswith("libfastrtps") for p in pkgs), pkgs)
+        self.assertTrue(any(p.startswith("libyaml-cpp") for p in pkgs), pkgs)
+
     def test_final_stage_holds_the_install_tree_and_runtime_packages_only(self):
         stages = self.stages()
         self.assertGreaterEqual(len(stages), 2, "one stage: compilers and build trees ship")

@@ -71,6 +71,10 @@ class ImuInitializer {
   double stamp_s() const { return stamp_s_; }  // time of the last sample used
 
  private:
+  // Accepts the static window: the world's z is the measured "up", the gyro mean the bias.
+  void Finish(const Eigen::Vector3d& acc_mean, const Eigen::Vector3d& gyr_mean, double scale,
+              double g_norm);
+
   ImuInitOptions options_;
   std::vector<ImuSample> window_;
   bool done_ = false;

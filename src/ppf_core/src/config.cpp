@@ -214,18 +214,27 @@ ConfigTable CoreConfigTable(Config* c) {
   return t;
 }
 
-// Each note names the YAML key (config/reference.yaml), so a clamped value can be found in the
-// file that set it.
-std::vector<std::string> ValidateConfig(Config* c) {
-  std::vector<std::string> notes;
-  auto fix = [&notes](bool bad, const std::string& what, auto* field, auto value) {
-    if (bad) {
-      std::ostringstream os;
-      os << what << ": " << *field << " -> " << value;
-      notes.push_back(os.str());
-      *field = value;
-    }
-  };
+namespace {
+
+// Clamps a value that cannot work to a safe one and says so in a note naming the YAML key
+// (config/reference.yaml), so a clamped value can be found in the file that set it.
+class Fixer {
+ public:
+  explicit Fixer(std::vector<std::string>* notes) : notes_(notes) {}
+  template <typename T, typename V>
+  void operator()(bool bad, const std::string& what, T* field, V value) {
+    if (!bad) return;
+    std::ostringstream os;
+    os << what << ": " << *field << " -> " << value;
+    notes_->push_back(os.str());
+    *field = value;
+  }
+
+ private:
+  std::vector<std::string>* notes_;
+};
+
+void ValidatePreprocessMapAndTime(Config* c, Fixer& fix) {
   fix(!(c->min_range >= 0.0), "preprocess.min_range", &c->min_range, 0.0);
   fix(!(c->max_range > c->min_range), "preprocess.max_range", &c->max_range, c->min_range + 100.0);
   fix(c->point_stride < 1, "preprocess.point_stride", &c->point_stride, 1);
@@ -242,6 +251,9 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(c->time.scan_period_s > 0.0), "time.scan_period", &c->time.scan_period_s, 0.1);
   fix(!(c->time.unit_scale_s >= 0.0), "time.unit_scale", &c->time.unit_scale_s, 0.0);
   fix(!(c->imu_auto_wait_s >= 0.0), "imu.auto_wait", &c->imu_auto_wait_s, 2.0);
+}
+
+void ValidateLidarOnly(Config* c, Fixer& fix) {
   LidarOnlyOptions* lo = &c->lidar_only;
   fix(!(lo->good_fit >= 0.0 && lo->good_fit <= 1.0), "lidar_only.good_fit", &lo->good_fit, 0.8);
   fix(!(lo->good_fit_relative >= 0.0 && lo->good_fit_relative <= 1.0),
@@ -259,8 +271,11 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(lo->prior_pos_std > 0.0), "lidar_only.prior_pos_std", &lo->prior_pos_std, 0.1);
   fix(lo->redeskew_iterations < 0 || lo->redeskew_iterations > 10, "lidar_only.redeskew_iterations",
       &lo->redeskew_iterations, 0);
-  fix(!(lo->redeskew_min_change >= 0.0), "lidar_only.redeskew_min_change",
-      &lo->redeskew_min_change, 0.002);
+  fix(!(lo->redeskew_min_change >= 0.0), "lidar_only.redeskew_min_change", &lo->redeskew_min_change,
+      0.002);
+}
+
+void ValidateImu(Config* c, Fixer& fix) {
   fix(!(c->init.duration_s >= 0.0), "imu.init_duration", &c->init.duration_s, 1.0);
   fix(c->init.min_samples < 2, "imu.init_min_samples", &c->init.min_samples, 2);
   fix(!(c->init.moving_start_window_s >= 0.3 && c->init.moving_start_window_s <= 10.0),
@@ -281,6 +296,9 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(c->noise.gyro_bias >= 0.0), "imu.gyro_bias_noise", &c->noise.gyro_bias, 1e-4);
   fix(!(c->noise.acc_bias >= 0.0), "imu.acc_bias_noise", &c->noise.acc_bias, 1e-3);
   fix(!(c->noise.gravity_dir >= 0.0), "imu.gravity_dir_noise", &c->noise.gravity_dir, 0.0);
+}
+
+void ValidateIekfAndKnn(Config* c, Fixer& fix) {
   fix(c->iekf.max_iterations < 1, "iekf.max_iterations", &c->iekf.max_iterations, 1);
   fix(c->iekf.max_iterations > 30, "iekf.max_iterations", &c->iekf.max_iterations, 30);
   fix(!(c->iekf.laser_point_std > 0.0), "iekf.laser_point_std", &c->iekf.laser_point_std, 0.3);
@@ -298,18 +316,35 @@ std::vector<std::string> ValidateConfig(Config* c) {
   fix(!(c->knn.max_neighbor_distance > 0.0), "knn.max_neighbor_distance",
       &c->knn.max_neighbor_distance, 1.0);
   fix(!(c->knn.max_residual > 0.0), "knn.max_residual", &c->knn.max_residual, 0.5);
-  for (const std::string& note : ValidatePpfConfig(&c->ppf)) notes.push_back(note);  // PPF
+}
+
+// A rotation that is not one (rounded digits in a YAML file) is re-orthonormalized; a broken one
+// replaced by the identity.
+void ValidateExtrinsic(Config* c, std::vector<std::string>* notes) {
   const Eigen::Matrix3d R = c->T_imu_lidar.linear();
   if (!c->T_imu_lidar.matrix().allFinite() ||
       (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-3 || R.determinant() < 0) {
-    notes.push_back("extrinsic.T_imu_lidar rotation is not a rotation: re-orthonormalized");
+    notes->push_back("extrinsic.T_imu_lidar rotation is not a rotation: re-orthonormalized");
     if (c->T_imu_lidar.matrix().allFinite() && R.determinant() > 0) {
       c->T_imu_lidar.linear() = NormalizeRotation(R);
     } else {
       c->T_imu_lidar = Eigen::Isometry3d::Identity();
-      notes.back() = "extrinsic.T_imu_lidar invalid: identity used";
+      notes->back() = "extrinsic.T_imu_lidar invalid: identity used";
     }
   }
+}
+
+}  // namespace
+
+std::vector<std::string> ValidateConfig(Config* c) {
+  std::vector<std::string> notes;
+  Fixer fix(&notes);
+  ValidatePreprocessMapAndTime(c, fix);
+  ValidateLidarOnly(c, fix);
+  ValidateImu(c, fix);
+  ValidateIekfAndKnn(c, fix);
+  for (const std::string& note : ValidatePpfConfig(&c->ppf)) notes.push_back(note);  // PPF
+  ValidateExtrinsic(c, &notes);
   return notes;
 }
 

@@ -100,6 +100,20 @@ void LioPpf::Impl::AddImu(const ImuSample& s) {
     ++dropped_imu;
     return;
   }
+  JudgeImuGap(s);
+  last_imu_stamp = s.stamp_s;
+  imu.push_back(s);
+  if (!initialized) FeedInitializer(s);
+  // Bounded buffer even if no scan ever arrives (a moving-start window trims its own).
+  while (imu.size() > 2 && imu[1].stamp_s < state.stamp_s - 1.0 && initialized && !moving_init) {
+    imu.pop_front();
+  }
+  while (imu.size() > 20000) imu.pop_front();
+}
+
+// What the time since the last sample means: time going back resets the filter; a gap restarts a
+// moving start, ends an IMU-loss fallback (LIO resumes), or is bridged or entered as IMU loss.
+void LioPpf::Impl::JudgeImuGap(const ImuSample& s) {
   if (s.stamp_s < last_imu_stamp - 1e-9) {
     std::ostringstream os;
     os << "IMU time went backwards by " << last_imu_stamp - s.stamp_s << " s";
@@ -140,29 +154,23 @@ void LioPpf::Impl::AddImu(const ImuSample& s) {
       imu_loss_gap_s = gap;
     }
   }
-  last_imu_stamp = s.stamp_s;
-  imu.push_back(s);
-  if (!initialized) {
-    // The scans are registered LiDAR-only while the IMU is judged, so that a moving start has
-    // its window of poses by the time the IMU is refused; a static start discards them.
-    if (config.init.moving_start) moving_init = true;
-    const ImuInitializer::State st = init.Add(s);
-    if (st == ImuInitializer::State::kRestarted) {
-      Log(LogLevel::kWarn, init.reason());
-      if (moving_init && init.refused_for_motion() && !moving_refused) {
-        moving_refused = true;
-        Log(LogLevel::kInfo,
-            "no rest at start: moving-start initialization (gravity and velocity from the "
-            "LiDAR-only registration of the first scans and the IMU)");
-      }
+}
+
+void LioPpf::Impl::FeedInitializer(const ImuSample& s) {
+  // The scans are registered LiDAR-only while the IMU is judged, so that a moving start has
+  // its window of poses by the time the IMU is refused; a static start discards them.
+  if (config.init.moving_start) moving_init = true;
+  const ImuInitializer::State st = init.Add(s);
+  if (st == ImuInitializer::State::kRestarted) {
+    Log(LogLevel::kWarn, init.reason());
+    if (moving_init && init.refused_for_motion() && !moving_refused) {
+      moving_refused = true;
+      Log(LogLevel::kInfo,
+          "no rest at start: moving-start initialization (gravity and velocity from the "
+          "LiDAR-only registration of the first scans and the IMU)");
     }
-    if (st == ImuInitializer::State::kDone) StartFilter();
   }
-  // Bounded buffer even if no scan ever arrives (a moving-start window trims its own).
-  while (imu.size() > 2 && imu[1].stamp_s < state.stamp_s - 1.0 && initialized && !moving_init) {
-    imu.pop_front();
-  }
-  while (imu.size() > 20000) imu.pop_front();
+  if (st == ImuInitializer::State::kDone) StartFilter();
 }
 
 uint64_t LioPpf::Impl::AddScan(const CloudView& cloud) {

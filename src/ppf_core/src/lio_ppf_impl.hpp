@@ -58,6 +58,8 @@ struct LioPpf::Impl {
   }
   void ResetFilter(const std::string& reason);
   void AddImu(const ImuSample& s);
+  void JudgeImuGap(const ImuSample& s);  // AddImu's steps
+  void FeedInitializer(const ImuSample& s);
   uint64_t AddScan(const CloudView& cloud);
   ScanResult Rejected(const QueuedScan& q) const;
   std::vector<ScanResult> Process(bool flush);
@@ -123,7 +125,7 @@ struct LioPpf::Impl {
   VoxelGridDownsampler downsampler;  // keeps its hash table between scans
   bool initialized = false;
   bool map_initialized = false;
-  bool lidar_only = false;   // decided: no IMU (DecideImuMode)
+  bool lidar_only = false;       // decided: no IMU (DecideImuMode)
   bool lidar_only_auto = false;  // ... by imu.mode auto: IMU samples arriving later start LIO
   // Late IMU: LIO starting from a LiDAR-only start. The moving-start window runs on the
   // LiDAR-only map and world (no reset), and its scans' results stay valid LiDAR-only poses.
@@ -147,12 +149,12 @@ struct LioPpf::Impl {
   // IMU loss (lio_ppf.hpp): LIO running, but scans are registered LiDAR-only until IMU samples
   // are back and cover the next scan; then propagation re-anchors at the last LiDAR-only pose.
   bool imu_lost = false;
-  bool fallback_scan = false;     // the scan in ProcessOne is one of those
-  bool fallback_seeded = false;   // the motion model holds the filter's pose and twist
-  bool imu_back = false;          // samples arrived after the loss, the first at imu_back_stamp_s
+  bool fallback_scan = false;    // the scan in ProcessOne is one of those
+  bool fallback_seeded = false;  // the motion model holds the filter's pose and twist
+  bool imu_back = false;         // samples arrived after the loss, the first at imu_back_stamp_s
   double imu_back_stamp_s = 0.0;
-  double imu_loss_gap_s = 0.0;    // the gap in the IMU stream those samples ended
-  double fallback_dt = 0.0;       // interval of the last LiDAR-only scan (velocity at resume)
+  double imu_loss_gap_s = 0.0;  // the gap in the IMU stream those samples ended
+  double fallback_dt = 0.0;     // interval of the last LiDAR-only scan (velocity at resume)
   StateCov P_before_loss = StateCov::Identity();  // biases' and gravity's, kept for the resume
   // A scan may resume LIO if the first IMU sample back is at most this much after its start: the
   // propagation holds that sample for the bit before it (a few IMU periods).

@@ -26,22 +26,22 @@ void Usage(const char* argv0) {
                argv0);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  using ppf::dds::Level;
-  using ppf::dds::Log;
+struct Args {
   std::string config_file;
   std::string calibration_file;
   int domain_override = -1;
+};
+
+// Returns -1 to go on, else the exit code (0 for --help, 2 for a bad argument).
+int ParseArgs(int argc, char** argv, Args* args) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--config" && i + 1 < argc) {
-      config_file = argv[++i];
+      args->config_file = argv[++i];
     } else if (a == "--calibration" && i + 1 < argc) {
-      calibration_file = argv[++i];
+      args->calibration_file = argv[++i];
     } else if (a == "--domain" && i + 1 < argc) {
-      domain_override = std::atoi(argv[++i]);
+      args->domain_override = std::atoi(argv[++i]);
     } else if (a == "-h" || a == "--help") {
       Usage(argv[0]);
       return 0;
@@ -50,61 +50,48 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  ppf::dds::NodeConfig config;
-  if (!config_file.empty()) {
-    const auto report = ppf::dds::LoadNodeConfig(config_file, &config);
+  return -1;
+}
+
+// The node config with the command line's overrides; false (logged) if the file is refused.
+bool LoadConfig(const Args& args, ppf::dds::NodeConfig* config) {
+  using ppf::dds::Level;
+  using ppf::dds::Log;
+  if (!args.config_file.empty()) {
+    const auto report = ppf::dds::LoadNodeConfig(args.config_file, config);
     for (const auto& w : report.warnings) Log(Level::kWarn, "config: " + w);
     if (!report.ok) {
       Log(Level::kError, "config: " + report.error);
-      return 2;
+      return false;
     }
   }
-  if (domain_override >= 0) config.participant.domain_id = domain_override;
-  if (!calibration_file.empty()) config.core_calibration_file = calibration_file;
+  if (args.domain_override >= 0) config->participant.domain_id = args.domain_override;
+  if (!args.calibration_file.empty()) config->core_calibration_file = args.calibration_file;
+  return true;
+}
 
-  // libgomp reads OMP_WAIT_POLICY when it is loaded, before main: to apply the configured policy
-  // the process re-executes itself once with it set (same pid, nothing created yet).
-  if (!config.omp_wait_policy.empty() && std::getenv("OMP_WAIT_POLICY") == nullptr) {
-    setenv("OMP_WAIT_POLICY", config.omp_wait_policy.c_str(), 1);
-    // The real path, not /proc/self/exe: the process name (ps, pgrep) stays "ppf_node".
-    char self[4096];
-    const ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
-    if (n > 0) {
-      self[n] = '\0';
-      execv(self, argv);
-    }
-    Log(Level::kWarn, std::string("could not apply OMP_WAIT_POLICY (re-exec failed: ") +
-                          std::strerror(errno) + "); continuing with the default");
+// libgomp reads OMP_WAIT_POLICY when it is loaded, before main: to apply the configured policy
+// the process re-executes itself once with it set (same pid, nothing created yet). Returns only
+// if that was not needed or failed (logged).
+void ApplyOmpWaitPolicy(const std::string& policy, char** argv) {
+  if (policy.empty() || std::getenv("OMP_WAIT_POLICY") != nullptr) return;
+  setenv("OMP_WAIT_POLICY", policy.c_str(), 1);
+  // The real path, not /proc/self/exe: the process name (ps, pgrep) stays "ppf_node".
+  char self[4096];
+  const ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
+  if (n > 0) {
+    self[n] = '\0';
+    execv(self, argv);
   }
+  ppf::dds::Log(ppf::dds::Level::kWarn,
+                std::string("could not apply OMP_WAIT_POLICY (re-exec failed: ") +
+                    std::strerror(errno) + "); continuing with the default");
+}
 
-  // Signals are handled by a dedicated thread (sigwait), so stop() never runs in a signal handler.
-  sigset_t set;
-  sigemptyset(&set);
-  sigaddset(&set, SIGINT);
-  sigaddset(&set, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &set, nullptr);  // inherited by every thread created from here on
-
-  ppf::dds::PpfNode node(config);
-  std::string error;
-  if (!node.init(&error)) {
-    Log(Level::kError, "ppf_node: " + error);
-    return 1;
-  }
-  std::printf("PPF_NODE_READY domain=%d\n", config.participant.domain_id);
-  std::fflush(stdout);
-
-  std::thread signal_thread([&node, set] {
-    int sig = 0;
-    sigwait(&set, &sig);
-    if (sig != 0) Log(Level::kInfo, std::string("ppf_node: ") + strsignal(sig) + ", stopping");
-    node.stop();
-  });
-  node.run();
-  // run() may also end without a signal (never today); unblock the watcher in that case.
-  pthread_kill(signal_thread.native_handle(), SIGTERM);
-  signal_thread.join();
-
-  const ppf::dds::NodeSummary s = node.summary();
+// The end-of-run summary: a readable block on stderr, one machine-readable line on stdout.
+void PrintSummary(const ppf::dds::NodeSummary& s) {
+  using ppf::dds::Level;
+  using ppf::dds::Log;
   const std::string line = ppf::dds::PpfNode::FormatSummary(s);
   Log(Level::kInfo, "summary: scans processed " + std::to_string(s.scans_processed) + ", dropped " +
                         std::to_string(s.scans_dropped) + ", malformed " +
@@ -137,5 +124,47 @@ int main(int argc, char** argv) {
       s.latency_p99_ms, s.core_p50_ms, s.core_p99_ms, s.overhead_p50_ms, s.overhead_p99_ms);
   std::printf("PPF_NODE_SUMMARY %s\n", line.c_str());
   std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using ppf::dds::Level;
+  using ppf::dds::Log;
+  Args args;
+  const int parsed = ParseArgs(argc, argv, &args);
+  if (parsed >= 0) return parsed;
+  ppf::dds::NodeConfig config;
+  if (!LoadConfig(args, &config)) return 2;
+  ApplyOmpWaitPolicy(config.omp_wait_policy, argv);
+
+  // Signals are handled by a dedicated thread (sigwait), so stop() never runs in a signal handler.
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);  // inherited by every thread created from here on
+
+  ppf::dds::PpfNode node(config);
+  std::string error;
+  if (!node.init(&error)) {
+    Log(Level::kError, "ppf_node: " + error);
+    return 1;
+  }
+  std::printf("PPF_NODE_READY domain=%d\n", config.participant.domain_id);
+  std::fflush(stdout);
+
+  std::thread signal_thread([&node, set] {
+    int sig = 0;
+    sigwait(&set, &sig);
+    if (sig != 0) Log(Level::kInfo, std::string("ppf_node: ") + strsignal(sig) + ", stopping");
+    node.stop();
+  });
+  node.run();
+  // run() may also end without a signal (never today); unblock the watcher in that case.
+  pthread_kill(signal_thread.native_handle(), SIGTERM);
+  signal_thread.join();
+
+  PrintSummary(node.summary());
   return 0;
 }

@@ -38,7 +38,7 @@ struct Unit {
   uint64_t offset = 0;  // of the record (opcode byte)
   uint64_t length = 0;  // whole record incl. prefix
   uint64_t start = 0, end = 0;
-  uint64_t order = 0;   // file order, for stable ties
+  uint64_t order = 0;  // file order, for stable ties
 };
 
 struct Pending {
@@ -59,89 +59,21 @@ class McapReader final : public StorageReader {
  public:
   explicit McapReader(const std::string& path) : file_(path) {
     info_.storage = Storage::kMcap;
-    const uint64_t size = file_.size();
-    const std::string& p = file_.path();
-    if (size < sizeof(mcap::kMagic)) throw BagError("'" + p + "' is too short to be an MCAP file");
-    uint8_t magic[8];
-    file_.ReadAt(0, magic, 8);
-    if (std::memcmp(magic, mcap::kMagic, 8) != 0) {
-      throw BagError("'" + p + "' is not an MCAP file (bad leading magic)");
-    }
-    if (size < 8 + mcap::kRecordPrefix + 8 + mcap::kFooterRecord + 8) {
-      throw BagError("'" + p + "' is truncated (no room for header and footer)");
-    }
-    file_.ReadAt(size - 8, magic, 8);
-    const uint64_t footer_pos = size - 8 - mcap::kFooterRecord;
-    const auto footer = file_.ReadAt(footer_pos, mcap::kFooterRecord);
-    Parser f(footer.data(), footer.size(), p + " footer");
-    const uint8_t op = f.U8();
-    const uint64_t flen = f.U64();
-    if (std::memcmp(magic, mcap::kMagic, 8) != 0 || op != mcap::kFooter ||
-        flen != mcap::kFooterContent) {
-      throw BagError("'" + p + "' is truncated or corrupt: no footer and trailing magic at the end");
-    }
-    const uint64_t summary_start = f.U64();
-    const uint64_t summary_offset_start = f.U64();
-    const uint32_t summary_crc = f.U32();
-    if (summary_start > footer_pos || summary_offset_start > footer_pos ||
-        (summary_start != 0 && summary_start < 8)) {
-      throw BagError("'" + p + "' footer points outside the file");
-    }
-    const uint64_t data_end_bound = summary_start ? summary_start
-                                    : summary_offset_start ? summary_offset_start
-                                                           : footer_pos;
-    if (summary_crc != 0) {
-      const uint64_t from = data_end_bound;
-      const auto bytes = file_.ReadAt(from, footer_pos + mcap::kRecordPrefix + 16 - from);
-      const uint32_t got = Crc32(bytes.data(), bytes.size());
-      if (got != summary_crc) {
-        throw BagError("'" + p + "' summary CRC mismatch (stored " + std::to_string(summary_crc) +
-                       ", computed " + std::to_string(got) + ")");
-      }
-    }
-    bool have_stats = false;
-    std::map<uint16_t, uint64_t> channel_counts;
-    uint64_t stats_count = 0, stats_start = 0, stats_end = 0;
-    if (summary_start != 0) {
-      const uint64_t end = summary_offset_start ? summary_offset_start : footer_pos;
-      if (end < summary_start) throw BagError("'" + p + "' footer offsets are inconsistent");
-      const auto bytes = file_.ReadAt(summary_start, end - summary_start);
-      Parser s(bytes.data(), bytes.size(), p + " summary");
-      while (!s.done()) {
-        const uint8_t rop = s.U8();
-        Parser r = s.Sub(s.U64(), "record 0x" + Hex(rop));
-        if (rop == mcap::kSchema || rop == mcap::kChannel) {
-          ParseDefinition(rop, r);
-        } else if (rop == mcap::kStatistics) {
-          stats_count = r.U64();
-          r.U16();
-          r.U32();
-          r.U32();
-          r.U32();
-          r.U32();
-          stats_start = r.U64();
-          stats_end = r.U64();
-          Parser m = r.Sub32("channel_message_counts");
-          while (!m.done()) {
-            const uint16_t id = m.U16();
-            channel_counts[id] = m.U64();
-          }
-          have_stats = true;
-        }
-      }
-    }
-    ScanDataSection(data_end_bound);
+    const Footer footer = ReadFooter();
+    if (footer.summary_crc != 0) CheckSummaryCrc(footer);
+    const Statistics stats = ReadSummary(footer);
+    ScanDataSection(footer.data_end_bound);
     // Statistics are trusted only if they cover every channel they count.
-    bool stats_usable = have_stats && (stats_count == 0 || !channel_counts.empty());
-    for (const auto& [id, n] : channel_counts) {
+    bool stats_usable = stats.present && (stats.count == 0 || !stats.channel_counts.empty());
+    for (const auto& [id, n] : stats.channel_counts) {
       if (!channels_.count(id)) stats_usable = false;
     }
     std::map<uint16_t, uint64_t> counts;
     if (stats_usable) {
-      counts = channel_counts;
-      info_.message_count = stats_count;
-      info_.start_ns = static_cast<int64_t>(stats_start);
-      info_.end_ns = static_cast<int64_t>(stats_end);
+      counts = stats.channel_counts;
+      info_.message_count = stats.count;
+      info_.start_ns = static_cast<int64_t>(stats.start);
+      info_.end_ns = static_cast<int64_t>(stats.end);
     } else {
       CountByScanning(counts);
     }
@@ -163,7 +95,8 @@ class McapReader final : public StorageReader {
 
   bool Next(Message& out) override {
     for (;;) {
-      while (cursor_ < units_.size() && (heap_.empty() || units_[cursor_].start <= heap_.top().time)) {
+      while (cursor_ < units_.size() &&
+             (heap_.empty() || units_[cursor_].start <= heap_.top().time)) {
         LoadUnit(units_[cursor_++]);
       }
       if (heap_.empty()) return false;
@@ -177,6 +110,106 @@ class McapReader final : public StorageReader {
   }
 
  private:
+  struct Footer {
+    uint64_t position = 0;  // of the Footer record
+    uint64_t summary_start = 0;
+    uint64_t summary_offset_start = 0;
+    uint32_t summary_crc = 0;
+    uint64_t data_end_bound = 0;  // the data section ends before this
+  };
+
+  struct Statistics {
+    bool present = false;
+    uint64_t count = 0, start = 0, end = 0;
+    std::map<uint16_t, uint64_t> channel_counts;
+  };
+
+  // Checks the leading magic, the Footer record and the trailing magic; the footer's offsets
+  // must lie inside the file.
+  Footer ReadFooter() {
+    const uint64_t size = file_.size();
+    const std::string& p = file_.path();
+    if (size < sizeof(mcap::kMagic)) throw BagError("'" + p + "' is too short to be an MCAP file");
+    uint8_t magic[8];
+    file_.ReadAt(0, magic, 8);
+    if (std::memcmp(magic, mcap::kMagic, 8) != 0) {
+      throw BagError("'" + p + "' is not an MCAP file (bad leading magic)");
+    }
+    if (size < 8 + mcap::kRecordPrefix + 8 + mcap::kFooterRecord + 8) {
+      throw BagError("'" + p + "' is truncated (no room for header and footer)");
+    }
+    file_.ReadAt(size - 8, magic, 8);
+    Footer footer;
+    footer.position = size - 8 - mcap::kFooterRecord;
+    const auto bytes = file_.ReadAt(footer.position, mcap::kFooterRecord);
+    Parser f(bytes.data(), bytes.size(), p + " footer");
+    const uint8_t op = f.U8();
+    const uint64_t flen = f.U64();
+    if (std::memcmp(magic, mcap::kMagic, 8) != 0 || op != mcap::kFooter ||
+        flen != mcap::kFooterContent) {
+      throw BagError("'" + p +
+                     "' is truncated or corrupt: no footer and trailing magic at the end");
+    }
+    footer.summary_start = f.U64();
+    footer.summary_offset_start = f.U64();
+    footer.summary_crc = f.U32();
+    if (footer.summary_start > footer.position || footer.summary_offset_start > footer.position ||
+        (footer.summary_start != 0 && footer.summary_start < 8)) {
+      throw BagError("'" + p + "' footer points outside the file");
+    }
+    footer.data_end_bound = footer.summary_start          ? footer.summary_start
+                            : footer.summary_offset_start ? footer.summary_offset_start
+                                                          : footer.position;
+    return footer;
+  }
+
+  // The CRC covers the summary and summary-offset sections and the footer up to its CRC field.
+  void CheckSummaryCrc(const Footer& footer) {
+    const uint64_t from = footer.data_end_bound;
+    const auto bytes = file_.ReadAt(from, footer.position + mcap::kRecordPrefix + 16 - from);
+    const uint32_t got = Crc32(bytes.data(), bytes.size());
+    if (got != footer.summary_crc) {
+      throw BagError("'" + file_.path() + "' summary CRC mismatch (stored " +
+                     std::to_string(footer.summary_crc) + ", computed " + std::to_string(got) +
+                     ")");
+    }
+  }
+
+  // Schemas and channels of the summary section, and its Statistics record if there is one.
+  Statistics ReadSummary(const Footer& footer) {
+    Statistics stats;
+    if (footer.summary_start == 0) return stats;
+    const std::string& p = file_.path();
+    const uint64_t end =
+        footer.summary_offset_start ? footer.summary_offset_start : footer.position;
+    if (end < footer.summary_start) throw BagError("'" + p + "' footer offsets are inconsistent");
+    const auto bytes = file_.ReadAt(footer.summary_start, end - footer.summary_start);
+    Parser s(bytes.data(), bytes.size(), p + " summary");
+    while (!s.done()) {
+      const uint8_t rop = s.U8();
+      Parser r = s.Sub(s.U64(), "record 0x" + Hex(rop));
+      if (rop == mcap::kSchema || rop == mcap::kChannel) {
+        ParseDefinition(rop, r);
+      } else if (rop == mcap::kStatistics) {
+        stats.count = r.U64();
+        r.U16();  // schema count
+        r.U32();  // channel count
+        r.U32();  // attachment count
+        r.U32();  // metadata count
+        r.U32();  // chunk count
+        stats.start = r.U64();
+        stats.end = r.U64();
+        Parser m = r.Sub32("channel_message_counts");
+        while (!m.done()) {
+          const uint16_t id = m.U16();
+          stats.channel_counts[id] = m.U64();
+        }
+        stats.present = true;
+      }
+    }
+    return stats;
+  }
+
   static std::string Hex(uint8_t v) {
     const char* d = "0123456789abcdef";
     return std::string{d[v >> 4], d[v & 15]};
@@ -192,7 +225,8 @@ class McapReader final : public StorageReader {
       r.Sub32("schema data");
       if (id == 0) return;  // invalid per spec, ignored
       auto it = schemas_.find(id);
-      if (it != schemas_.end() && (it->second.name != s.name || it->second.encoding != s.encoding)) {
+      if (it != schemas_.end() &&
+          (it->second.name != s.name || it->second.encoding != s.encoding)) {
         r.Fail("schema id " + std::to_string(id) + " redefined differently");
       }
       schemas_[id] = s;
@@ -212,7 +246,8 @@ class McapReader final : public StorageReader {
                std::to_string(c.schema_id));
       }
       auto it = channels_.find(id);
-      if (it != channels_.end() && (it->second.topic != c.topic || it->second.schema_id != c.schema_id)) {
+      if (it != channels_.end() &&
+          (it->second.topic != c.topic || it->second.schema_id != c.schema_id)) {
         r.Fail("channel id " + std::to_string(id) + " redefined differently");
       }
       if (it == channels_.end()) channels_[id] = c;
@@ -239,7 +274,8 @@ class McapReader final : public StorageReader {
       const uint64_t len = pp.U64();
       if (len > bound - pos - mcap::kRecordPrefix) {
         throw BagError("'" + p + "' record 0x" + Hex(op) + " at byte " + std::to_string(pos) +
-                       " claims " + std::to_string(len) + " bytes, beyond the data section (truncated or corrupt)");
+                       " claims " + std::to_string(len) +
+                       " bytes, beyond the data section (truncated or corrupt)");
       }
       if (first && op != mcap::kHeader) {
         throw BagError("'" + p + "' does not start with a Header record");
@@ -258,7 +294,8 @@ class McapReader final : public StorageReader {
       rec = file_.ReadAt(pos + mcap::kRecordPrefix, len);
       crc = Crc32Update(crc, prefix, sizeof(prefix));
       crc = Crc32Update(crc, rec.data(), rec.size());
-      Parser r(rec.data(), rec.size(), p + " record 0x" + Hex(op) + " at byte " + std::to_string(pos));
+      Parser r(rec.data(), rec.size(),
+               p + " record 0x" + Hex(op) + " at byte " + std::to_string(pos));
       switch (op) {
         case mcap::kHeader:
           profile_ = r.Str();

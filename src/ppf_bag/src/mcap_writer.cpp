@@ -37,7 +37,8 @@ struct ChunkIndexEntry {
 class McapWriter final : public StorageWriter {
  public:
   McapWriter(const std::string& path, const WriterOptions& options)
-      : path_(path), compression_(options.compression == "none" ? "" : options.compression),
+      : path_(path),
+        compression_(options.compression == "none" ? "" : options.compression),
         chunk_size_(options.chunk_size) {
     if (!IsSupportedCompression(compression_)) {
       throw BagError("unsupported MCAP compression '" + options.compression +
@@ -136,18 +137,9 @@ class McapWriter final : public StorageWriter {
   void Close() override {
     if (!file_) return;
     FlushChunk();
-    Builder b;
-    size_t at = b.BeginRecord(mcap::kDataEnd);
-    b.U32(0);
-    b.EndRecord(at);
-    // DataEnd's own bytes are not part of the data section CRC.
-    const uint32_t data_crc = crc_;
-    b.buf[9] = data_crc & 0xFF;
-    b.buf[10] = (data_crc >> 8) & 0xFF;
-    b.buf[11] = (data_crc >> 16) & 0xFF;
-    b.buf[12] = (data_crc >> 24) & 0xFF;
-    Emit(b.buf, false);
-
+    WriteDataEnd();
+    // The summary section: schemas, channels, statistics and chunk indexes, each group located
+    // by a SummaryOffset record, then the footer.
     const uint64_t summary_start = offset_;
     Builder s;
     struct Group {
@@ -166,47 +158,11 @@ class McapWriter final : public StorageWriter {
     group(mcap::kChannel, [&] {
       for (const auto& r : channel_records_) s.Bytes(r.data(), r.size());
     });
-    group(mcap::kStatistics, [&] {
-      at = s.BeginRecord(mcap::kStatistics);
-      s.U64(message_count_);
-      s.U16(static_cast<uint16_t>(schemas_.size()));
-      s.U32(static_cast<uint32_t>(channels_.size()));
-      s.U32(0);  // attachments
-      s.U32(0);  // metadata
-      s.U32(static_cast<uint32_t>(chunk_indexes_.size()));
-      s.U64(message_count_ ? start_ : 0);
-      s.U64(message_count_ ? end_ : 0);
-      const size_t m = s.Begin32();
-      for (const auto& name : channel_order_) {
-        s.U16(channels_[name].id);
-        s.U64(channels_[name].count);
-      }
-      s.End32(m);
-      s.EndRecord(at);
-    });
-    group(mcap::kChunkIndex, [&] {
-      for (const auto& ci : chunk_indexes_) {
-        at = s.BeginRecord(mcap::kChunkIndex);
-        s.U64(ci.start);
-        s.U64(ci.end);
-        s.U64(ci.offset);
-        s.U64(ci.length);
-        const size_t m = s.Begin32();
-        for (const auto& [id, off] : ci.index_offsets) {
-          s.U16(id);
-          s.U64(off);
-        }
-        s.End32(m);
-        s.U64(ci.index_length);
-        s.Str(ci.compression);
-        s.U64(ci.compressed_size);
-        s.U64(ci.uncompressed_size);
-        s.EndRecord(at);
-      }
-    });
+    group(mcap::kStatistics, [&] { AppendStatistics(&s); });
+    group(mcap::kChunkIndex, [&] { AppendChunkIndexes(&s); });
     const uint64_t summary_offset_start = summary_start + s.buf.size();
     for (const auto& g : groups) {
-      at = s.BeginRecord(mcap::kSummaryOffset);
+      const size_t at = s.BeginRecord(mcap::kSummaryOffset);
       s.U8(g.op);
       s.U64(g.start);
       s.U64(g.length);
@@ -228,6 +184,60 @@ class McapWriter final : public StorageWriter {
   }
 
  private:
+  // DataEnd carries the CRC of the data section; its own bytes are not part of it.
+  void WriteDataEnd() {
+    Builder b;
+    const size_t at = b.BeginRecord(mcap::kDataEnd);
+    b.U32(0);
+    b.EndRecord(at);
+    const uint32_t data_crc = crc_;
+    b.buf[9] = data_crc & 0xFF;
+    b.buf[10] = (data_crc >> 8) & 0xFF;
+    b.buf[11] = (data_crc >> 16) & 0xFF;
+    b.buf[12] = (data_crc >> 24) & 0xFF;
+    Emit(b.buf, false);
+  }
+
+  void AppendStatistics(Builder* s) {
+    const size_t at = s->BeginRecord(mcap::kStatistics);
+    s->U64(message_count_);
+    s->U16(static_cast<uint16_t>(schemas_.size()));
+    s->U32(static_cast<uint32_t>(channels_.size()));
+    s->U32(0);  // attachments
+    s->U32(0);  // metadata
+    s->U32(static_cast<uint32_t>(chunk_indexes_.size()));
+    s->U64(message_count_ ? start_ : 0);
+    s->U64(message_count_ ? end_ : 0);
+    const size_t m = s->Begin32();
+    for (const auto& name : channel_order_) {
+      s->U16(channels_[name].id);
+      s->U64(channels_[name].count);
+    }
+    s->End32(m);
+    s->EndRecord(at);
+  }
+
+  void AppendChunkIndexes(Builder* s) const {
+    for (const auto& ci : chunk_indexes_) {
+      const size_t at = s->BeginRecord(mcap::kChunkIndex);
+      s->U64(ci.start);
+      s->U64(ci.end);
+      s->U64(ci.offset);
+      s->U64(ci.length);
+      const size_t m = s->Begin32();
+      for (const auto& [id, off] : ci.index_offsets) {
+        s->U16(id);
+        s->U64(off);
+      }
+      s->End32(m);
+      s->U64(ci.index_length);
+      s->Str(ci.compression);
+      s->U64(ci.compressed_size);
+      s->U64(ci.uncompressed_size);
+      s->EndRecord(at);
+    }
+  }
+
   void Emit(const std::vector<uint8_t>& bytes, bool data_section) {
     if (!bytes.empty() && std::fwrite(bytes.data(), 1, bytes.size(), file_) != bytes.size()) {
       throw BagError("write to '" + path_ + "' failed: " + std::strerror(errno));

@@ -313,17 +313,12 @@ class Ros1Reader final : public StorageReader {
     return filter_.empty() || filter_.count(connections_.at(conn).topic) > 0;
   }
 
-  void LoadChunk(const ChunkRef& ref) {
-    // Skip chunks that cannot contribute: before the seek time, or only filtered-out topics.
-    if (ref.end < seek_time_) return;
-    bool any = false;
-    for (const auto& [id, n] : ref.counts) any = any || (n > 0 && Wanted(id));
-    if (!any) return;
-
+  // The chunk record at ref.offset, decompressed and checked against its declared size.
+  std::shared_ptr<const std::vector<uint8_t>> InflateChunk(const ChunkRef& ref,
+                                                           const std::string& where) {
     uint64_t data_pos;
     uint32_t data_len;
     const Fields h = ReadRecordHeader(ref.offset, &data_pos, &data_len);
-    const std::string where = Where(ref.offset);
     if (FieldAs<uint8_t>(h, "op", where) != kChunk) {
       throw BagError(where + ": chunk info (at byte offset " + std::to_string(ref.info_offset) +
                      ") points here but this is not a chunk record");
@@ -331,7 +326,7 @@ class Ros1Reader final : public StorageReader {
     const std::string& compression = FieldStr(h, "compression", where);
     const uint32_t size = FieldAs<uint32_t>(h, "size", where);
     const auto raw = file_.ReadAt(data_pos, data_len);
-    std::shared_ptr<std::vector<uint8_t>> buf;
+    std::shared_ptr<const std::vector<uint8_t>> buf;
     try {
       if (compression == "none") {
         if (raw.size() != size) {
@@ -356,6 +351,18 @@ class Ros1Reader final : public StorageReader {
       if (what.find(where) != std::string::npos) throw;
       throw BagError(where + ": " + what.substr(std::strlen("ppf_bag: ")));
     }
+    return buf;
+  }
+
+  void LoadChunk(const ChunkRef& ref) {
+    // Skip chunks that cannot contribute: before the seek time, or only filtered-out topics.
+    if (ref.end < seek_time_) return;
+    bool any = false;
+    for (const auto& [id, n] : ref.counts) any = any || (n > 0 && Wanted(id));
+    if (!any) return;
+
+    const std::string where = Where(ref.offset);
+    const std::shared_ptr<const std::vector<uint8_t>> buf = InflateChunk(ref, where);
     std::map<uint32_t, uint32_t> seen;
     size_t pos = 0;
     while (pos < buf->size()) {

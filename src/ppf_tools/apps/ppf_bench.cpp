@@ -39,7 +39,7 @@ constexpr double kShortDuration = 5.0;
 constexpr int kDefaultThreads = 2;  // the targets are for 2 threads
 
 // Stage columns of ppf_offline's --stats CSV, in table order.
-constexpr const char* kStages[] = {"t_preprocess_ms", "t_deskew_ms",   "t_downsample_ms",
+constexpr const char* kStages[] = {"t_preprocess_ms", "t_deskew_ms",    "t_downsample_ms",
                                    "t_ppf_ms",        "t_residuals_ms", "t_update_ms",
                                    "t_map_insert_ms", "t_total_ms"};
 constexpr const char* kStageHeads[] = {"preproc", "deskew", "downsmp", "ppf",
@@ -98,9 +98,9 @@ std::string Quote(const std::vector<std::string>& args) {
 // Per-scan stage times of the scans with a pose, from a --stats CSV.
 struct StageSamples {
   std::vector<double> stage[kNumStages];
-  size_t scans = 0;       // every scan result
-  size_t with_pose = 0;   // scans with pose_valid
-  double core_ms = 0.0;   // sum of t_total_ms over every scan
+  size_t scans = 0;      // every scan result
+  size_t with_pose = 0;  // scans with pose_valid
+  double core_ms = 0.0;  // sum of t_total_ms over every scan
 };
 
 std::vector<std::string> SplitCsv(const std::string& line) {
@@ -262,8 +262,8 @@ bool ParseNumber(const std::string& s, double* v) {
 
 // Reads the printed table back: every row of every sequence and mode is there, every number
 // parses, p95 >= median, the RSS difference is what its columns say. Times are not judged.
-bool CheckTable(const std::string& table, const std::vector<std::string>& sequences,
-                bool callgrind, std::string* error) {
+bool CheckTable(const std::string& table, const std::vector<std::string>& sequences, bool callgrind,
+                std::string* error) {
   std::istringstream in(table);
   std::string line;
   std::getline(in, line);  // header
@@ -322,6 +322,50 @@ bool CheckTable(const std::string& table, const std::vector<std::string>& sequen
   return true;
 }
 
+void PrintHelp() {
+  std::cout
+      << "usage: ppf_bench [options]\n\n"
+         "Runs ppf_offline --mode knn and --mode ppf as child processes on simulated\n"
+         "sequences (generated with ppf_sim on first use), plus ppf_offline --read-only\n"
+         "on the same bag, and prints one table per scan with a pose: per-stage median/p95\n"
+         "(ms), scans/s (scans / summed core time), peak RSS of each process (MB), that of\n"
+         "the read-only pass, their difference, and with --callgrind the instructions per\n"
+         "scan of the core (valgrind, 1 thread, ProcessOne + AddScan collected). --short\n"
+         "then checks the table (complete, every number parses); no time is asserted.\n"
+         "Durations: 20 s, --short 5 s; threads: 2 unless --threads.\n\n"
+      << ppf::tools::StudyOptionsHelp(kDefaultSequences)
+      << "  --callgrind           also the Ir per scan column (slow: about 50x)\n"
+         "  --ppf-offline PATH    the ppf_offline that runs the modes (default: the one next\n"
+         "                        to ppf_bench, which always does the read-only pass)\n"
+         "  -h, --help            this text\n";
+}
+
+// Instructions per scan with a pose of the core (ProcessOne + AddScan) under callgrind, one
+// thread: `args` is the ppf_offline command without its output options, `base` the run's path stem.
+double CallgrindIrPerScan(const std::vector<std::string>& args, const std::string& base,
+                          const std::string& what) {
+  std::string error;
+  // One thread: callgrind serialises threads and collects them all, and the core's 1-thread
+  // arithmetic is the deterministic one.
+  const std::string out = base + ".callgrind.out";
+  std::vector<std::string> cg = {"valgrind", "--tool=callgrind", "--callgrind-out-file=" + out,
+                                 "--toggle-collect=ppf::LioPpf::Impl::ProcessOne*",
+                                 "--toggle-collect=ppf::LioPpf::AddScan*"};
+  cg.insert(cg.end(), args.begin(), args.end());
+  for (const auto& a : {std::string("--threads"), std::string("1"), std::string("--out"),
+                        base + "_cg.tum", std::string("--stats"), base + "_cg.csv"}) {
+    cg.push_back(a);
+  }
+  std::cerr << "ppf_bench: " << what << " under callgrind...\n";
+  const auto c = RunChild(cg, base + ".callgrind.log");
+  if (c.exit_code != 0) Fail(Quote(cg) + " failed (see " + base + ".callgrind.log)");
+  StageSamples cg_samples;
+  double ir = 0.0;
+  if (!ReadStats(base + "_cg.csv", &cg_samples, &error)) Fail(error);
+  if (!CallgrindTotal(out, &ir) || cg_samples.with_pose == 0) Fail(out + ": no total");
+  return ir / static_cast<double>(cg_samples.with_pose);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -355,20 +399,7 @@ int main(int argc, char** argv) {
   std::string error;
   if (!ppf::tools::ParseStudyCommandLine(argc, argv, &opts, &help, &error, own)) Fail(error);
   if (help) {
-    std::cout << "usage: ppf_bench [options]\n\n"
-                 "Runs ppf_offline --mode knn and --mode ppf as child processes on simulated\n"
-                 "sequences (generated with ppf_sim on first use), plus ppf_offline --read-only\n"
-                 "on the same bag, and prints one table per scan with a pose: per-stage median/p95\n"
-                 "(ms), scans/s (scans / summed core time), peak RSS of each process (MB), that of\n"
-                 "the read-only pass, their difference, and with --callgrind the instructions per\n"
-                 "scan of the core (valgrind, 1 thread, ProcessOne + AddScan collected). --short\n"
-                 "then checks the table (complete, every number parses); no time is asserted.\n"
-                 "Durations: 20 s, --short 5 s; threads: 2 unless --threads.\n\n"
-              << ppf::tools::StudyOptionsHelp(kDefaultSequences)
-              << "  --callgrind           also the Ir per scan column (slow: about 50x)\n"
-                 "  --ppf-offline PATH    the ppf_offline that runs the modes (default: the one next\n"
-                 "                        to ppf_bench, which always does the read-only pass)\n"
-                 "  -h, --help            this text\n";
+    PrintHelp();
     return 0;
   }
   if (opts.duration <= 0) opts.duration = opts.short_form ? kShortDuration : kDefaultDuration;
@@ -393,20 +424,18 @@ int main(int argc, char** argv) {
     const std::string stem = (runs / (seq.scene + "_" + seq.lidar)).string();
 
     std::cerr << "ppf_bench: " << seq.Name() << ": read only...\n";
-    const std::vector<std::string> read_args = {reader, "--bag", bag, "--read-only",
-                                                "--quiet"};
+    const std::vector<std::string> read_args = {reader, "--bag", bag, "--read-only", "--quiet"};
     const auto read = RunChild(read_args, stem + "_read.log");
     if (read.exit_code != 0) Fail(Quote(read_args) + " failed (see " + stem + "_read.log)");
 
     for (const char* mode : {"knn", "ppf"}) {
       const std::string base = stem + "_" + mode;
-      std::vector<std::string> args = {ppf_offline, "--bag",  bag,  "--config",
-                                       preset,      "--config", bag + "/calibration.yaml",
-                                       "--mode",    mode,       "--quiet"};
+      std::vector<std::string> args = {
+          ppf_offline, "--bag", bag,      "--config", preset, "--config", bag + "/calibration.yaml",
+          "--mode",    mode,    "--quiet"};
       std::vector<std::string> timed = args;
-      for (const auto& a : {std::string("--threads"), std::to_string(threads),
-                            std::string("--out"), base + ".tum", std::string("--stats"),
-                            base + ".csv"}) {
+      for (const auto& a : {std::string("--threads"), std::to_string(threads), std::string("--out"),
+                            base + ".tum", std::string("--stats"), base + ".csv"}) {
         timed.push_back(a);
       }
       std::cerr << "ppf_bench: " << seq.Name() << ": " << mode << "...\n";
@@ -415,26 +444,7 @@ int main(int argc, char** argv) {
       ModeRow row{seq.Name(), mode, {}, run.max_rss_mb, read.max_rss_mb, -1.0};
       if (!ReadStats(base + ".csv", &row.samples, &error)) Fail(error);
       if (callgrind) {
-        // One thread: callgrind serialises threads and collects them all, and the core's 1-thread
-        // arithmetic is the deterministic one.
-        const std::string out = base + ".callgrind.out";
-        std::vector<std::string> cg = {"valgrind", "--tool=callgrind",
-                                       "--callgrind-out-file=" + out,
-                                       "--toggle-collect=ppf::LioPpf::Impl::ProcessOne*",
-                                       "--toggle-collect=ppf::LioPpf::AddScan*"};
-        cg.insert(cg.end(), args.begin(), args.end());
-        for (const auto& a : {std::string("--threads"), std::string("1"), std::string("--out"),
-                              base + "_cg.tum", std::string("--stats"), base + "_cg.csv"}) {
-          cg.push_back(a);
-        }
-        std::cerr << "ppf_bench: " << seq.Name() << ": " << mode << " under callgrind...\n";
-        const auto c = RunChild(cg, base + ".callgrind.log");
-        if (c.exit_code != 0) Fail(Quote(cg) + " failed (see " + base + ".callgrind.log)");
-        StageSamples cg_samples;
-        double ir = 0.0;
-        if (!ReadStats(base + "_cg.csv", &cg_samples, &error)) Fail(error);
-        if (!CallgrindTotal(out, &ir) || cg_samples.with_pose == 0) Fail(out + ": no total");
-        row.ir_per_scan = ir / static_cast<double>(cg_samples.with_pose);
+        row.ir_per_scan = CallgrindIrPerScan(args, base, seq.Name() + ": " + mode);
       }
       rows.push_back(std::move(row));
     }

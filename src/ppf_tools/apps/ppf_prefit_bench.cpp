@@ -114,10 +114,9 @@ double Percentile(std::vector<double> v, double p) {
   return v[i];
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  Options opt;
+// Returns -1 to go on, else the exit code.
+int ParseOptions(int argc, char** argv, Options* o) {
+  Options& opt = *o;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> int {
@@ -149,79 +148,75 @@ int main(int argc, char** argv) {
       return a == "-h" || a == "--help" ? 0 : 2;
     }
   }
+  return -1;
+}
 
-  // Generate the downsampled scans and their true poses once (not timed).
+struct Scans {
+  std::vector<std::vector<Eigen::Vector3f>> points;  // de-skewed, downsampled
+  std::vector<Eigen::Isometry3d> poses;              // true LiDAR poses
+  double raw_points = 0;                             // summed before the voxel grid
+};
+
+// The downsampled scans and their true poses, generated once (not timed).
+Scans MakeScans(const Options& opt) {
   const Drive drive = MakeDrive(opt.seed, opt.scans);
   ppf::sim::ScanOptions so;
   so.seed = opt.seed;
   so.T_imu_lidar = drive.T_imu_lidar;
   const ppf::sim::ScanGenerator gen(drive.world.scene, drive.world.trajectory,
                                     ppf::sim::GetLidarModel("hdl64"), so);
-  std::vector<std::vector<Eigen::Vector3f>> scans;
-  std::vector<Eigen::Isometry3d> poses;
-  double raw_points = 0;
+  Scans out;
   for (int k = 0; k < opt.scans; ++k) {
     const auto raw = DeskewedScan(gen, drive, k);
-    raw_points += raw.size();
-    scans.push_back(opt.voxel > 0 ? ppf::VoxelDownsample(raw, opt.voxel) : raw);
-    poses.push_back(drive.LidarPose(k * gen.period()));
+    out.raw_points += raw.size();
+    out.points.push_back(opt.voxel > 0 ? ppf::VoxelDownsample(raw, opt.voxel) : raw);
+    out.poses.push_back(drive.LidarPose(k * gen.period()));
   }
-  double ds_points = 0;
-  for (const auto& s : scans) ds_points += s.size();
-  std::printf(
-      "PPF pre-fitting on simulated HDL-64E urban scans: %d scans (first not counted), "
-      "%.0f raw -> %.0f points after the %.2f m voxel grid (mean), %d timed repetitions per "
-      "scan (median kept)%s\n",
-      opt.scans, raw_points / opt.scans, ds_points / opt.scans, opt.voxel, opt.reps,
-      opt.short_mode ? " (--short)" : "");
+  return out;
+}
 
-  std::vector<int> thread_counts;
-  if (opt.threads > 0)
-    thread_counts = {opt.threads};
-  else
-    thread_counts = {1, 2};
-  std::vector<Row> rows;
-  for (int threads : thread_counts) {
-    for (bool incremental : {false, true}) {
-      ppf::PpfConfig cfg = ppf::PpfConfigForBeams(64);
-      cfg.incremental_fitting = incremental;
-      cfg.num_threads = threads;
-      ppf::PlanePrefitter prefitter(cfg);
-      ppf::SkeletonWindow window(cfg);
-      Row row;
-      row.mode = incremental ? "incremental" : "ransac only";
-      row.threads = threads;
-      for (int k = 0; k < opt.scans; ++k) {
-        // The prediction is off by ~3 cm and 0.2 deg: a pessimistic IMU-propagated pose over 0.1 s.
-        Eigen::Isometry3d err = Eigen::Isometry3d::Identity();
-        err.linear() =
-            Eigen::AngleAxisd(0.0035, Eigen::Vector3d(0.3, 0.2, 1).normalized()).toRotationMatrix();
-        err.translation() = Eigen::Vector3d(0.02, -0.015, 0.01);
-        const auto guesses = window.GuessesInFrame(poses[k] * err);
-        ppf::PrefitResult r;
-        std::vector<double> reps;
-        for (int rep = 0; rep < opt.reps; ++rep) {
-          const auto t0 = Clock::now();
-          prefitter.Fit(scans[k], guesses, &r);
-          reps.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
-        }
-        window.Update(r.planes, poses[k]);
-        if (k == 0) continue;  // cold start
-        row.ms.push_back(Percentile(reps, 0.5));
-        row.points += scans[k].size();
-        row.planes += r.planes.size();
-        row.guesses += r.guesses_tried;
-        row.accepted += r.guesses_accepted;
-        row.ransac_runs += r.ransac_runs;
-        row.ransac_iters += r.ransac_iterations;
-        row.skeleton += r.skeleton_indices.size();
-        row.scattered += r.scattered_indices.size();
-        ++row.stops[ppf::PrefitStopName(r.stop)];
-      }
-      rows.push_back(row);
+// Pre-fits every scan `opt.reps` times with the window's guesses from a slightly wrong pose, as
+// the filter would; the first scan (cold start) is not counted.
+Row TimeMode(const Options& opt, const Scans& scans, int threads, bool incremental) {
+  ppf::PpfConfig cfg = ppf::PpfConfigForBeams(64);
+  cfg.incremental_fitting = incremental;
+  cfg.num_threads = threads;
+  ppf::PlanePrefitter prefitter(cfg);
+  ppf::SkeletonWindow window(cfg);
+  Row row;
+  row.mode = incremental ? "incremental" : "ransac only";
+  row.threads = threads;
+  for (int k = 0; k < opt.scans; ++k) {
+    // The prediction is off by ~3 cm and 0.2 deg: a pessimistic IMU-propagated pose over 0.1 s.
+    Eigen::Isometry3d err = Eigen::Isometry3d::Identity();
+    err.linear() =
+        Eigen::AngleAxisd(0.0035, Eigen::Vector3d(0.3, 0.2, 1).normalized()).toRotationMatrix();
+    err.translation() = Eigen::Vector3d(0.02, -0.015, 0.01);
+    const auto guesses = window.GuessesInFrame(scans.poses[k] * err);
+    ppf::PrefitResult r;
+    std::vector<double> reps;
+    for (int rep = 0; rep < opt.reps; ++rep) {
+      const auto t0 = Clock::now();
+      prefitter.Fit(scans.points[k], guesses, &r);
+      reps.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
     }
+    window.Update(r.planes, scans.poses[k]);
+    if (k == 0) continue;  // cold start
+    row.ms.push_back(Percentile(reps, 0.5));
+    row.points += scans.points[k].size();
+    row.planes += r.planes.size();
+    row.guesses += r.guesses_tried;
+    row.accepted += r.guesses_accepted;
+    row.ransac_runs += r.ransac_runs;
+    row.ransac_iters += r.ransac_iterations;
+    row.skeleton += r.skeleton_indices.size();
+    row.scattered += r.scattered_indices.size();
+    ++row.stops[ppf::PrefitStopName(r.stop)];
   }
+  return row;
+}
 
+void PrintTable(const std::vector<Row>& rows) {
   std::printf("%-12s %7s | %7s %7s %7s %7s | %6s %7s %8s %7s %8s | %6s %6s | %s\n", "mode",
               "threads", "mean ms", "p50 ms", "p95 ms", "max ms", "planes", "guesses", "accepted",
               "ransac", "r.iters", "Omega%", "Theta%", "stop reasons");
@@ -247,5 +242,32 @@ int main(int argc, char** argv) {
       "Theta%%: skeleton/scattered share of the downsampled scan (the rest are discarded "
       "semi-inliers). Target: <= 2 ms per HDL-64 scan with incremental fitting on 2 "
       "threads.\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options opt;
+  const int parsed = ParseOptions(argc, argv, &opt);
+  if (parsed >= 0) return parsed;
+  const Scans scans = MakeScans(opt);
+  const double raw_points = scans.raw_points;
+  double ds_points = 0;
+  for (const auto& s : scans.points) ds_points += s.size();
+  std::printf(
+      "PPF pre-fitting on simulated HDL-64E urban scans: %d scans (first not counted), "
+      "%.0f raw -> %.0f points after the %.2f m voxel grid (mean), %d timed repetitions per "
+      "scan (median kept)%s\n",
+      opt.scans, raw_points / opt.scans, ds_points / opt.scans, opt.voxel, opt.reps,
+      opt.short_mode ? " (--short)" : "");
+
+  const std::vector<int> thread_counts =
+      opt.threads > 0 ? std::vector<int>{opt.threads} : std::vector<int>{1, 2};
+  std::vector<Row> rows;
+  for (int threads : thread_counts) {
+    for (bool incremental : {false, true})
+      rows.push_back(TimeMode(opt, scans, threads, incremental));
+  }
+  PrintTable(rows);
   return 0;
 }

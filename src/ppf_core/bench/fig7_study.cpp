@@ -189,7 +189,65 @@ double PlaneDistance(const Eigen::Isometry3d& T, double distance) {
 struct Accum {
   double iters = 0, converged = 0, dist_first = 0, dist_final = 0, resid_us = 0, prefit_us = 0;
   int n = 0;
+
+  void Add(const LmResult& r, double distance, double prefit_us_ = 0.0) {
+    iters += r.iterations;
+    converged += r.converged;
+    dist_first += PlaneDistance(r.T_after_first, distance);
+    dist_final += PlaneDistance(r.T, distance);
+    resid_us += r.residual_us_per_iter;
+    prefit_us += prefit_us_;
+    ++n;
+  }
 };
+
+constexpr int kMaxIterations = 30;
+
+// kNN: the core's voxel map, exact 5-NN within 1 m, a plane fitted to them per source point.
+LmResult RegisterKnn(const std::vector<Vec3f>& target, const std::vector<Vec3f>& source) {
+  ppf::VoxelMapOptions mo;
+  mo.resolution = 1.0;
+  mo.nearby = ppf::NearbyType::kNearby27;
+  mo.max_points_per_voxel = 100000;
+  mo.min_point_distance = 0.0;
+  ppf::VoxelMap map(mo);
+  map.Insert(target);
+  auto knn_rows = [&](const Eigen::Isometry3d& T, std::vector<Row>* rows) {
+    std::vector<Vec3f> nn;
+    for (const Vec3f& p : source) {
+      const Eigen::Vector3d pw = T * p.cast<double>();
+      if (map.GetClosest(pw.cast<float>(), 5, 1.0, &nn) < 5) continue;
+      const auto plane = ppf::FitPlaneLeastSquares(nn);
+      if (!plane) continue;
+      rows->push_back(Row{p.cast<double>(), plane->n, plane->d});
+    }
+  };
+  return RunLm(knn_rows, kMaxIterations);
+}
+
+// PPF: pre-fit both scans (timed into *prefit_us), then skeleton residuals against the target's
+// plane. No plane in the target: an empty (not converged) result.
+LmResult RegisterPpf(const ppf::PpfConfig& cfg, const std::vector<Vec3f>& target,
+                     const std::vector<Vec3f>& source, double distance, double* prefit_us) {
+  const auto tp0 = Clock::now();
+  ppf::PlanePrefitter prefitter(cfg);
+  ppf::PrefitResult target_fit, source_fit;
+  prefitter.Fit(target, {}, &target_fit);
+  prefitter.Fit(source, {}, &source_fit);
+  *prefit_us = std::chrono::duration<double, std::micro>(Clock::now() - tp0).count();
+  std::vector<ppf::Plane> window;
+  for (const auto& f : target_fit.planes) window.push_back(f.plane);  // target frame = world
+  auto ppf_rows = [&](const Eigen::Isometry3d& T, std::vector<Row>* rows) {
+    std::vector<ppf::SkeletonMatch> matches;
+    ppf::ComputeSkeletonMatches(source, source_fit.skeleton_indices, T, window,
+                                /*eps=*/distance + 1.0, &matches);
+    for (const auto& m : matches) {
+      rows->push_back(Row{source[m.point_index].cast<double>(), window[m.plane_index].n,
+                          window[m.plane_index].d});
+    }
+  };
+  return window.empty() ? LmResult{} : RunLm(ppf_rows, kMaxIterations);
+}
 
 int ParseArgs(int argc, char** argv, Options* o) {
   for (int i = 1; i < argc; ++i) {
@@ -236,7 +294,6 @@ int main(int argc, char** argv) {
 #ifdef _OPENMP
   omp_set_num_threads(1);  // the paper's study runs single-threaded
 #endif
-  const int kMaxIterations = 30;
   std::printf(
       "Fig. 7 study: plane %dx%d m, %d points per scan, initial distance %.2f m, "
       "%d trials per noise level, LM max %d iterations, iPCA %d iterations, 1 thread%s\n",
@@ -266,61 +323,12 @@ int main(int argc, char** argv) {
       const std::vector<Vec3f> target = NoisyPlane(opt.points, 0.0, sigma, &rng);
       const std::vector<Vec3f> source = NoisyPlane(opt.points, opt.distance, sigma, &rng);
 
-      // ---- kNN: the core's voxel map, exact 5-NN within 1 m -------------------------------
-      ppf::VoxelMapOptions mo;
-      mo.resolution = 1.0;
-      mo.nearby = ppf::NearbyType::kNearby27;
-      mo.max_points_per_voxel = 100000;
-      mo.min_point_distance = 0.0;
-      ppf::VoxelMap map(mo);
-      map.Insert(target);
-      auto knn_rows = [&](const Eigen::Isometry3d& T, std::vector<Row>* rows) {
-        std::vector<Vec3f> nn;
-        for (const Vec3f& p : source) {
-          const Eigen::Vector3d pw = T * p.cast<double>();
-          if (map.GetClosest(pw.cast<float>(), 5, 1.0, &nn) < 5) continue;
-          const auto plane = ppf::FitPlaneLeastSquares(nn);
-          if (!plane) continue;
-          rows->push_back(Row{p.cast<double>(), plane->n, plane->d});
-        }
-      };
-      const LmResult knn = RunLm(knn_rows, kMaxIterations);
-
-      // ---- PPF: pre-fit both scans, then skeleton residuals against the target's plane -------
-      const auto tp0 = Clock::now();
-      ppf::PlanePrefitter prefitter(cfg);
-      ppf::PrefitResult target_fit, source_fit;
-      prefitter.Fit(target, {}, &target_fit);
-      prefitter.Fit(source, {}, &source_fit);
-      const double prefit_us =
-          std::chrono::duration<double, std::micro>(Clock::now() - tp0).count();
-      std::vector<ppf::Plane> window;
-      for (const auto& f : target_fit.planes) window.push_back(f.plane);  // target frame = world
-      auto ppf_rows = [&](const Eigen::Isometry3d& T, std::vector<Row>* rows) {
-        std::vector<ppf::SkeletonMatch> matches;
-        ppf::ComputeSkeletonMatches(source, source_fit.skeleton_indices, T, window,
-                                    /*eps=*/opt.distance + 1.0, &matches);
-        for (const auto& m : matches) {
-          rows->push_back(Row{source[m.point_index].cast<double>(), window[m.plane_index].n,
-                              window[m.plane_index].d});
-        }
-      };
-      const LmResult ppf = window.empty() ? LmResult{} : RunLm(ppf_rows, kMaxIterations);
+      const LmResult knn = RegisterKnn(target, source);
+      double prefit_us = 0.0;
+      const LmResult ppf = RegisterPpf(cfg, target, source, opt.distance, &prefit_us);
       if (!ppf.converged) ppf_all_converged = false;
-
-      knn_acc.iters += knn.iterations;
-      knn_acc.converged += knn.converged;
-      knn_acc.dist_first += PlaneDistance(knn.T_after_first, opt.distance);
-      knn_acc.dist_final += PlaneDistance(knn.T, opt.distance);
-      knn_acc.resid_us += knn.residual_us_per_iter;
-      ++knn_acc.n;
-      ppf_acc.iters += ppf.iterations;
-      ppf_acc.converged += ppf.converged;
-      ppf_acc.dist_first += PlaneDistance(ppf.T_after_first, opt.distance);
-      ppf_acc.dist_final += PlaneDistance(ppf.T, opt.distance);
-      ppf_acc.resid_us += ppf.residual_us_per_iter;
-      ppf_acc.prefit_us += prefit_us;
-      ++ppf_acc.n;
+      knn_acc.Add(knn, opt.distance);
+      ppf_acc.Add(ppf, opt.distance, prefit_us);
     }
     const double kn = knn_acc.n, pn = ppf_acc.n;
     std::printf(

@@ -366,6 +366,43 @@ double CallgrindIrPerScan(const std::vector<std::string>& args, const std::strin
   return ir / static_cast<double>(cg_samples.with_pose);
 }
 
+// How each mode is run on one sequence.
+struct ModeRun {
+  std::string ppf_offline;  // the build that runs the modes
+  std::string bag, preset;
+  int threads = 2;
+  bool callgrind = false;
+};
+
+// One table row: ppf_offline in `mode` (timed, then under callgrind if asked), its stats read
+// back from `base`.csv; `read_rss_mb` is the read-only pass's peak RSS on the same bag.
+ModeRow RunMode(const ModeRun& m, const std::string& sequence, const std::string& mode,
+                const std::string& base, double read_rss_mb) {
+  const std::vector<std::string> args = {m.ppf_offline,
+                                         "--bag",
+                                         m.bag,
+                                         "--config",
+                                         m.preset,
+                                         "--config",
+                                         m.bag + "/calibration.yaml",
+                                         "--mode",
+                                         mode,
+                                         "--quiet"};
+  std::vector<std::string> timed = args;
+  for (const auto& a : {std::string("--threads"), std::to_string(m.threads), std::string("--out"),
+                        base + ".tum", std::string("--stats"), base + ".csv"}) {
+    timed.push_back(a);
+  }
+  std::cerr << "ppf_bench: " << sequence << ": " << mode << "...\n";
+  const auto run = RunChild(timed, base + ".log");
+  if (run.exit_code != 0) Fail(Quote(timed) + " failed (see " + base + ".log)");
+  ModeRow row{sequence, mode, {}, run.max_rss_mb, read_rss_mb, -1.0};
+  std::string error;
+  if (!ReadStats(base + ".csv", &row.samples, &error)) Fail(error);
+  if (m.callgrind) row.ir_per_scan = CallgrindIrPerScan(args, base, sequence + ": " + mode);
+  return row;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -429,24 +466,8 @@ int main(int argc, char** argv) {
     if (read.exit_code != 0) Fail(Quote(read_args) + " failed (see " + stem + "_read.log)");
 
     for (const char* mode : {"knn", "ppf"}) {
-      const std::string base = stem + "_" + mode;
-      std::vector<std::string> args = {
-          ppf_offline, "--bag", bag,      "--config", preset, "--config", bag + "/calibration.yaml",
-          "--mode",    mode,    "--quiet"};
-      std::vector<std::string> timed = args;
-      for (const auto& a : {std::string("--threads"), std::to_string(threads), std::string("--out"),
-                            base + ".tum", std::string("--stats"), base + ".csv"}) {
-        timed.push_back(a);
-      }
-      std::cerr << "ppf_bench: " << seq.Name() << ": " << mode << "...\n";
-      const auto run = RunChild(timed, base + ".log");
-      if (run.exit_code != 0) Fail(Quote(timed) + " failed (see " + base + ".log)");
-      ModeRow row{seq.Name(), mode, {}, run.max_rss_mb, read.max_rss_mb, -1.0};
-      if (!ReadStats(base + ".csv", &row.samples, &error)) Fail(error);
-      if (callgrind) {
-        row.ir_per_scan = CallgrindIrPerScan(args, base, seq.Name() + ": " + mode);
-      }
-      rows.push_back(std::move(row));
+      rows.push_back(RunMode({ppf_offline, bag, preset, threads, callgrind}, seq.Name(), mode,
+                             stem + "_" + mode, read.max_rss_mb));
     }
   }
 

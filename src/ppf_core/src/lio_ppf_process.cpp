@@ -229,10 +229,19 @@ void LioPpf::Impl::SeedFallback() {
 }
 
 // Back to LIO after an IMU loss: propagation starts from the last LiDAR-only pose with the
-// velocity of the LiDAR-only pose history; biases and gravity keep their estimates and
-// covariance. No reset and no jump: the pose is the registered one.
+// velocity of the LiDAR-only pose history (the path's tangent at that pose: after scans dropped
+// on a bend the last interval is long, and its chord points half the bend off); biases and
+// gravity keep their estimates and covariance. No reset and no jump: the pose is the registered
+// one.
 void LioPpf::Impl::ResumeLio(ScanResult* r) {
-  if (motion.has_twist()) state.v_world = motion.velocity_world();
+  // What a constant twist over the last interval would make of the velocity at the pose, versus
+  // the interval's chord: their difference is how far the chord can be off (on a bend after
+  // scans were dropped, half the bend); the filter is told so and corrects it from the scans.
+  Eigen::Vector3d v_spread = Eigen::Vector3d::Zero();
+  if (motion.has_twist()) {
+    state.v_world = motion.TangentVelocityWorld();
+    v_spread = state.v_world - motion.velocity_world();
+  }
   // The pose is as good as the last LiDAR-only update made it; the velocity is the difference
   // of two such poses over the scan interval. Neither is correlated with the rest any more.
   const Eigen::Matrix3d P_rot = state.P.block<3, 3>(kRot, kRot);
@@ -245,7 +254,8 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
   }
   state.P.block<3, 3>(kRot, kRot) = P_rot;
   state.P.block<3, 3>(kPos, kPos) = P_pos;
-  state.P.block<3, 3>(kVel, kVel) = 2.0 * P_pos / (dt * dt);
+  state.P.block<3, 3>(kVel, kVel) =
+      2.0 * P_pos / (dt * dt) + v_spread.squaredNorm() * Eigen::Matrix3d::Identity();
   // Samples from before the gap would be interpolated across it.
   while (!imu.empty() && imu.front().stamp_s < imu_back_stamp_s) imu.pop_front();
   imu_lost = false;

@@ -45,6 +45,37 @@ TEST(ConstantVelocityModel, ExtrapolatesAConstantScrewMotion) {
   EXPECT_LT(Deg(trace.PoseAt(11.0).linear().transpose() * want.linear()), 1e-9);
 }
 
+// Two poses 1.6 s apart on a circular bend of 35 degrees (a car whose scans were dropped): the
+// velocity at the second pose is the bend's tangent there. The chord over the interval, which
+// velocity_world() gives, points half the bend (17.5 degrees) off it.
+TEST(ConstantVelocityModel, TangentVelocityIsTheArcsTangentAtTheLastPose) {
+  const double dt = 1.6, speed = 5.0, turn = 35.0 * M_PI / 180.0;
+  const Eigen::Vector3d omega(0.0, 0.0, turn / dt), v_body(speed, 0.0, 0.0);
+  // The exact motion of a constant body twist over t: rotation exp(w t), translation
+  // J_l(w t) v t (the arc), here in closed form for a planar turn.
+  auto at = [&](double t) {
+    const double r = speed / omega.z(), a = omega.z() * t;
+    return Pose(Eigen::Vector3d(r * std::sin(a), r * (1.0 - std::cos(a)), 0.0),
+                Eigen::Vector3d(0.0, 0.0, a));
+  };
+  const Eigen::Isometry3d T_world_start =
+      Pose(Eigen::Vector3d(3.0, -1.0, 0.5), Eigen::Vector3d(0.02, -0.01, 0.7));
+  ConstantVelocityModel m;
+  m.Update(T_world_start * at(0.0), 20.0);
+  m.Update(T_world_start * at(dt), 20.0 + dt);
+  const Eigen::Vector3d truth = (T_world_start * at(dt)).linear() * v_body;
+  const Eigen::Vector3d tangent = m.TangentVelocityWorld();
+  EXPECT_LT((tangent - truth).norm(), 1e-9 * speed) << tangent.transpose();
+  const double chord_off_deg =
+      std::acos(m.velocity_world().normalized().dot(truth.normalized())) * 180.0 / M_PI;
+  EXPECT_NEAR(chord_off_deg, 17.5, 0.01);
+  // A straight interval: both are the same.
+  ConstantVelocityModel straight;
+  straight.Update(T_world_start, 1.0);
+  straight.Update(T_world_start * Pose(Eigen::Vector3d(0.5, 0, 0), Eigen::Vector3d::Zero()), 1.1);
+  EXPECT_LT((straight.TangentVelocityWorld() - straight.velocity_world()).norm(), 1e-12);
+}
+
 struct RoomFixture {
   test::Scene scene = test::MakeRoomScene();
   test::LidarModel lidar;

@@ -48,10 +48,10 @@ Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) or a ROS 1 .bag wi
   --imu-gap S L         drop the IMU samples from S to S+L seconds after the first message (an
                         IMU dropout, like the node test peer's --imu-gap; the core continues
                         LiDAR-only meanwhile, imu.loss_timeout)
-  --drop-scans K [S L]  drop every K-th scan (K >= 2; 2 drops half) before the core sees it, as a
+  --drop-scans K [S L]  drop every K-th scan (2 drops half) before the core sees it, as a
                         node starved of CPU drops them; with S L only the scans from S to S+L
                         seconds after the first message (with --imu-gap: scans lost during an
-                        IMU dropout)
+                        IMU dropout); K = 1 drops all of them (a burst, needs S L)
   --threads N           OpenMP threads for the core (default: config, else all cores)
   --dump-scan N         write scan N's registered points and skeleton planes (N counts every
                         scan result in bag order from 0; the scan must have a pose) to
@@ -131,7 +131,7 @@ Args ParseArgs(int argc, char** argv) {
       const std::string k = value(i);
       char* end = nullptr;
       a.drop_every = static_cast<int>(std::strtol(k.c_str(), &end, 10));
-      if (k.empty() || *end != '\0' || a.drop_every < 2) Fail("--drop-scans needs K >= 2");
+      if (k.empty() || *end != '\0' || a.drop_every < 1) Fail("--drop-scans needs K >= 1");
       // An optional window: two numbers follow.
       if (i + 2 < argc && argv[i + 1][0] != '-') {
         const std::string b = value(i), l = value(i);
@@ -141,6 +141,9 @@ Args ParseArgs(int argc, char** argv) {
         if (*end_b != '\0' || *end_l != '\0' || !(a.drop_begin >= 0) || !(a.drop_length > 0)) {
           Fail("--drop-scans K S L needs START >= 0 and LENGTH > 0 in seconds");
         }
+      }
+      if (a.drop_every == 1 && !(a.drop_length > 0)) {
+        Fail("--drop-scans 1 (every scan) needs a window: --drop-scans 1 START LENGTH");
       }
     } else if (arg == "--threads") {
       a.threads = std::atoi(value(i).c_str());

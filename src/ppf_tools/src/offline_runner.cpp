@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <memory>
 #include <utility>
@@ -43,6 +44,16 @@ OfflineRun RunOffline(const std::string& bag_path, const Config& config,
   auto note_first = [&](double t) {
     if (std::isnan(first_stamp) && std::isfinite(t)) first_stamp = t;
   };
+  // imu_lead_s: stamps of the scans added but not yet processed, and the newest IMU stamp fed.
+  std::deque<double> waiting;
+  double imu_fed = -std::numeric_limits<double>::infinity();
+  auto process_if_led = [&] {
+    if (waiting.empty() || imu_fed < waiting.front() + options.imu_lead_s) return;
+    const size_t before = run.results.size();
+    consume(lio->Process());
+    // The core keeps what the IMU does not cover yet; one result per processed scan, in order.
+    for (size_t i = before; i < run.results.size() && !waiting.empty(); ++i) waiting.pop_front();
+  };
   callbacks.on_imu = [&](const ImuSample& s) {
     note_first(s.stamp_s);
     const double t = s.stamp_s - first_stamp;
@@ -52,12 +63,15 @@ OfflineRun RunOffline(const std::string& bag_path, const Config& config,
       return;
     }
     lio->AddImu(s);
+    imu_fed = s.stamp_s;
+    if (options.imu_lead_s > 0.0) process_if_led();
   };
   uint64_t scans_in_window = 0;
   callbacks.on_scan = [&](const CloudView& v) {
     note_first(v.stamp_s);
     const double t = v.stamp_s - first_stamp;
-    if (options.drop_scans_every > 1 &&
+    if ((options.drop_scans_every > 1 ||
+         (options.drop_scans_every == 1 && options.drop_scans_length_s > 0.0)) &&
         (options.drop_scans_length_s <= 0.0 ||
          (t >= options.drop_scans_begin_s &&
           t < options.drop_scans_begin_s + options.drop_scans_length_s)) &&
@@ -66,7 +80,12 @@ OfflineRun RunOffline(const std::string& bag_path, const Config& config,
       return;
     }
     lio->AddScan(v);
-    consume(lio->Process());
+    if (options.imu_lead_s > 0.0) {
+      waiting.push_back(v.stamp_s);
+      process_if_led();
+    } else {
+      consume(lio->Process());
+    }
   };
   callbacks.on_error = options.on_error;
 

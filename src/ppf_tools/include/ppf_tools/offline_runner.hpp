@@ -38,13 +38,19 @@ struct OfflineOptions {
   double imu_gap_begin_s = 0.0;
   double imu_gap_length_s = 0.0;
   // > 1: every drop_scans_every-th scan (counted from the first in the window) never reaches
-  // the core, as when a node starved of CPU drops scans from its queue; 2 drops half. Only
+  // the core, as when a node starved of CPU drops scans from its queue; 2 drops half; 1 drops
+  // every scan of the window (a burst; needs drop_scans_length_s > 0). Only
   // scans from drop_scans_begin_s to drop_scans_begin_s + drop_scans_length_s after the first
   // message, if drop_scans_length_s > 0, else all. Dropped scans count in
   // OfflineRun::scans_dropped and yield no result.
   int drop_scans_every = 0;
   double drop_scans_begin_s = 0.0;
   double drop_scans_length_s = 0.0;
+  // > 0: the core processes its queued scans only once the IMU fed to it is this far ahead of
+  // the oldest of them, as in ppf_node when its core is behind: the executor feeds every queued
+  // IMU sample before the next scan, so IMU arrives seconds ahead of the scans waiting. 0: the
+  // scans are processed as soon as the bag has given them (bag order).
+  double imu_lead_s = 0.0;
 };
 
 // Throws ppf::bag::BagError if the bag cannot be read.

@@ -12,6 +12,7 @@
 #include <iostream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "ppf_core/config.hpp"
 #include "ppf_tools/offline_runner.hpp"
@@ -59,7 +60,28 @@ double MaxPoseJump(const ppf::Trajectory& gt, const ppf::Trajectory& est, double
 
 class ImuLoss : public ::testing::TestWithParam<Case> {};
 
-// Both tests' drive: the case's 14 s sequence, its preset and calibration on 1 thread
+// What a run's results say about the dropout: resets, scans registered LiDAR-only, returns to
+// LIO (imu_gap_s > 0 on the scan that resumed, and the core's own lio_resumed flag, counted
+// apart so each test asserts the one it means), and scans without a pose once one was had.
+struct Tally {
+  size_t resets = 0, lost = 0, resumed = 0, lio_resumed = 0, unposed_after_start = 0;
+};
+
+Tally Count(const std::vector<ppf::ScanResult>& results) {
+  Tally n;
+  bool started = false;
+  for (const ppf::ScanResult& r : results) {
+    n.resets += r.status == ppf::Status::kReset;
+    n.lost += r.imu_lost;
+    n.resumed += r.imu_gap_s > 0.0;
+    n.lio_resumed += r.lio_resumed;
+    started = started || r.pose_valid;
+    n.unposed_after_start += started && !r.pose_valid;
+  }
+  return n;
+}
+
+// Every test's drive: the case's sequence, its preset and calibration on 1 thread
 // (reproducible figures), its ground truth and first stamp.
 struct Drive {
   std::string bag;
@@ -153,19 +175,14 @@ TEST_P(ImuLoss, ThreeSecondDropoutWithHalfTheScansDropped) {
   drop.drop_scans_length_s = kGapLength;
   const ppf::tools::OfflineRun run = ppf::tools::RunOffline(d.bag, d.config, drop);
   EXPECT_GE(run.scans_dropped, 14u) << "half of the dropout's 30 scans";
-  size_t resets = 0, lost = 0, resumed = 0;
-  for (const ppf::ScanResult& r : run.results) {
-    resets += r.status == ppf::Status::kReset;
-    lost += r.imu_lost;
-    resumed += r.imu_gap_s > 0.0;
-  }
-  EXPECT_EQ(resets, 0u);
-  EXPECT_GE(lost, 10u);
-  EXPECT_EQ(resumed, 1u);
+  const Tally n = Count(run.results);
+  EXPECT_EQ(n.resets, 0u);
+  EXPECT_GE(n.lost, 10u);
+  EXPECT_EQ(n.resumed, 1u);
   double jump_at = 0.0;
   const double jump = MaxPoseJump(d.gt, run.trajectory, &jump_at);
   std::cout << "[ IMU loss + dropped scans ] " << c.name << ": " << run.scans_dropped
-            << " scans dropped, " << lost << " LiDAR-only; max pose jump " << jump << " m at t="
+            << " scans dropped, " << n.lost << " LiDAR-only; max pose jump " << jump << " m at t="
             << jump_at - d.t0 << " s\n";
   EXPECT_LE(jump, 0.2) << "pose jump at t=" << jump_at - d.t0 << " s";
 }
@@ -187,25 +204,17 @@ TEST_P(ImuLoss, ThreeSecondDropoutWithTheImuSecondsAheadOfTheScans) {
     drop.imu_gap_length_s = kGapLength;
     drop.imu_lead_s = lead;
     const ppf::tools::OfflineRun run = ppf::tools::RunOffline(d.bag, d.config, drop);
-    size_t resets = 0, lost = 0, resumed = 0, unposed_after_start = 0;
-    bool started = false;
-    for (const ppf::ScanResult& r : run.results) {
-      resets += r.status == ppf::Status::kReset;
-      lost += r.imu_lost;
-      resumed += r.imu_gap_s > 0.0;
-      started = started || r.pose_valid;
-      unposed_after_start += started && !r.pose_valid;
-    }
+    const Tally n = Count(run.results);
     double jump_at = 0.0;
     const double jump = MaxPoseJump(d.gt, run.trajectory, &jump_at);
-    std::cout << "[ IMU loss, IMU " << lead << " s ahead ] " << c.name << ": " << lost
-              << " scans LiDAR-only, " << resets << " resets, " << unposed_after_start
+    std::cout << "[ IMU loss, IMU " << lead << " s ahead ] " << c.name << ": " << n.lost
+              << " scans LiDAR-only, " << n.resets << " resets, " << n.unposed_after_start
               << " scans without a pose after the first; max pose jump " << jump << " m at t="
               << jump_at - d.t0 << " s\n";
-    EXPECT_EQ(resets, 0u);
-    EXPECT_GE(lost, 20u) << "the dropout's scans were not registered LiDAR-only";
-    EXPECT_EQ(resumed, 1u) << "LIO did not resume once after the dropout";
-    EXPECT_EQ(unposed_after_start, 0u);
+    EXPECT_EQ(n.resets, 0u);
+    EXPECT_GE(n.lost, 20u) << "the dropout's scans were not registered LiDAR-only";
+    EXPECT_EQ(n.resumed, 1u) << "LIO did not resume once after the dropout";
+    EXPECT_EQ(n.unposed_after_start, 0u);
     EXPECT_LE(jump, 0.2) << "pose jump at t=" << jump_at - d.t0 << " s";
   }
 }
@@ -231,13 +240,9 @@ TEST_P(ImuLoss, DropoutThroughABendWithASecondAndAHalfOfScansDropped) {
   drop.drop_scans_length_s = kBurstLength;
   const ppf::tools::OfflineRun run = ppf::tools::RunOffline(d.bag, d.config, drop);
   EXPECT_GE(run.scans_dropped, 14u);
-  size_t resets = 0, resumed = 0;
-  for (const ppf::ScanResult& r : run.results) {
-    resets += r.status == ppf::Status::kReset;
-    resumed += r.lio_resumed;
-  }
-  EXPECT_EQ(resets, 0u);
-  EXPECT_EQ(resumed, 1u);
+  const Tally n = Count(run.results);
+  EXPECT_EQ(n.resets, 0u);
+  EXPECT_EQ(n.lio_resumed, 1u);
   // Step errors: the long step over the dropped scans; the steps of the first 0.5 s after it,
   // in which LIO pulls that LiDAR-only pose back onto the map; the settled steps of the 2.5 s
   // after those.

@@ -20,7 +20,6 @@
 #include "ppf_trajectory/evaluation.hpp"
 #include "sim_sequence.hpp"
 
-
 namespace {
 
 struct Case {
@@ -101,6 +100,19 @@ void LoadDrive(const Case& c, double duration, Drive* d) {
   d->t0 = d->gt.front().stamp_s;
 }
 
+// The IMU lost from gap_begin for gap_length seconds and, with drop_every > 0, every
+// drop_every-th scan of [drop_begin, drop_begin + drop_length) never reaching the core.
+ppf::tools::OfflineOptions Dropout(double gap_begin, double gap_length, int drop_every = 0,
+                                   double drop_begin = 0.0, double drop_length = 0.0) {
+  ppf::tools::OfflineOptions o;
+  o.imu_gap_begin_s = gap_begin;
+  o.imu_gap_length_s = gap_length;
+  o.drop_scans_every = drop_every;
+  o.drop_scans_begin_s = drop_begin;
+  o.drop_scans_length_s = drop_length;
+  return o;
+}
+
 TEST_P(ImuLoss, ThreeSecondDropoutContinuesLidarOnlyAndResumes) {
   const Case& c = GetParam();
   const double kDuration = 14.0, kGapBegin = 6.0, kGapLength = 3.0;
@@ -108,10 +120,8 @@ TEST_P(ImuLoss, ThreeSecondDropoutContinuesLidarOnlyAndResumes) {
   ASSERT_NO_FATAL_FAILURE(LoadDrive(c, kDuration, &d));
 
   const ppf::tools::OfflineRun plain = ppf::tools::RunOffline(d.bag, d.config);
-  ppf::tools::OfflineOptions drop;
-  drop.imu_gap_begin_s = kGapBegin;
-  drop.imu_gap_length_s = kGapLength;
-  const ppf::tools::OfflineRun lossy = ppf::tools::RunOffline(d.bag, d.config, drop);
+  const ppf::tools::OfflineRun lossy =
+      ppf::tools::RunOffline(d.bag, d.config, Dropout(kGapBegin, kGapLength));
   EXPECT_GT(lossy.imu_dropped, 500u) << "the dropout did not drop the IMU (200 Hz for 3 s)";
 
   size_t resets = 0, lost = 0, resumed = 0, lost_after = 0, valid_in_gap = 0, in_gap = 0;
@@ -150,9 +160,8 @@ TEST_P(ImuLoss, ThreeSecondDropoutContinuesLidarOnlyAndResumes) {
   std::cout << "[ IMU loss ] " << c.name << ": 3 s dropout at " << kGapBegin << " s, " << lost
             << " scans LiDAR-only, " << resets << " resets; APE rmse " << ape_lossy.stats.rmse
             << " m (max " << ape_lossy.stats.max << ") vs " << ape_plain.stats.rmse
-            << " m without dropout (max " << ape_plain.stats.max << "); max pose jump "
-            << jump << " m at t=" << jump_at - d.t0 << " s (without dropout " << jump_plain
-            << " m)\n";
+            << " m without dropout (max " << ape_plain.stats.max << "); max pose jump " << jump
+            << " m at t=" << jump_at - d.t0 << " s (without dropout " << jump_plain << " m)\n";
   EXPECT_LE(jump, 0.2) << "pose jump at t=" << jump_at - d.t0 << " s";
   EXPECT_LE(ape_lossy.stats.rmse, 1.5 * ape_plain.stats.rmse)
       << "APE with the dropout above 1.5x the APE without";
@@ -167,13 +176,8 @@ TEST_P(ImuLoss, ThreeSecondDropoutWithHalfTheScansDropped) {
   Drive d;
   ASSERT_NO_FATAL_FAILURE(LoadDrive(c, kDuration, &d));
 
-  ppf::tools::OfflineOptions drop;
-  drop.imu_gap_begin_s = kGapBegin;
-  drop.imu_gap_length_s = kGapLength;
-  drop.drop_scans_every = 2;
-  drop.drop_scans_begin_s = kGapBegin;
-  drop.drop_scans_length_s = kGapLength;
-  const ppf::tools::OfflineRun run = ppf::tools::RunOffline(d.bag, d.config, drop);
+  const ppf::tools::OfflineRun run = ppf::tools::RunOffline(
+      d.bag, d.config, Dropout(kGapBegin, kGapLength, 2, kGapBegin, kGapLength));
   EXPECT_GE(run.scans_dropped, 14u) << "half of the dropout's 30 scans";
   const Tally n = Count(run.results);
   EXPECT_EQ(n.resets, 0u);
@@ -182,8 +186,8 @@ TEST_P(ImuLoss, ThreeSecondDropoutWithHalfTheScansDropped) {
   double jump_at = 0.0;
   const double jump = MaxPoseJump(d.gt, run.trajectory, &jump_at);
   std::cout << "[ IMU loss + dropped scans ] " << c.name << ": " << run.scans_dropped
-            << " scans dropped, " << n.lost << " LiDAR-only; max pose jump " << jump << " m at t="
-            << jump_at - d.t0 << " s\n";
+            << " scans dropped, " << n.lost << " LiDAR-only; max pose jump " << jump
+            << " m at t=" << jump_at - d.t0 << " s\n";
   EXPECT_LE(jump, 0.2) << "pose jump at t=" << jump_at - d.t0 << " s";
 }
 
@@ -199,9 +203,7 @@ TEST_P(ImuLoss, ThreeSecondDropoutWithTheImuSecondsAheadOfTheScans) {
   ASSERT_NO_FATAL_FAILURE(LoadDrive(c, kDuration, &d));
   for (const double lead : {1.0, 2.0, 4.0}) {
     SCOPED_TRACE("IMU " + std::to_string(lead) + " s ahead");
-    ppf::tools::OfflineOptions drop;
-    drop.imu_gap_begin_s = kGapBegin;
-    drop.imu_gap_length_s = kGapLength;
+    ppf::tools::OfflineOptions drop = Dropout(kGapBegin, kGapLength);
     drop.imu_lead_s = lead;
     const ppf::tools::OfflineRun run = ppf::tools::RunOffline(d.bag, d.config, drop);
     const Tally n = Count(run.results);
@@ -209,8 +211,8 @@ TEST_P(ImuLoss, ThreeSecondDropoutWithTheImuSecondsAheadOfTheScans) {
     const double jump = MaxPoseJump(d.gt, run.trajectory, &jump_at);
     std::cout << "[ IMU loss, IMU " << lead << " s ahead ] " << c.name << ": " << n.lost
               << " scans LiDAR-only, " << n.resets << " resets, " << n.unposed_after_start
-              << " scans without a pose after the first; max pose jump " << jump << " m at t="
-              << jump_at - d.t0 << " s\n";
+              << " scans without a pose after the first; max pose jump " << jump
+              << " m at t=" << jump_at - d.t0 << " s\n";
     EXPECT_EQ(n.resets, 0u);
     EXPECT_GE(n.lost, 20u) << "the dropout's scans were not registered LiDAR-only";
     EXPECT_EQ(n.resumed, 1u) << "LIO did not resume once after the dropout";
@@ -232,13 +234,8 @@ TEST_P(ImuLoss, DropoutThroughABendWithASecondAndAHalfOfScansDropped) {
   const double kBurstBegin = 14.5, kBurstLength = 1.5;
   Drive d;
   ASSERT_NO_FATAL_FAILURE(LoadDrive(c, kDuration, &d));
-  ppf::tools::OfflineOptions drop;
-  drop.imu_gap_begin_s = kGapBegin;
-  drop.imu_gap_length_s = kGapLength;
-  drop.drop_scans_every = 1;
-  drop.drop_scans_begin_s = kBurstBegin;
-  drop.drop_scans_length_s = kBurstLength;
-  const ppf::tools::OfflineRun run = ppf::tools::RunOffline(d.bag, d.config, drop);
+  const ppf::tools::OfflineRun run = ppf::tools::RunOffline(
+      d.bag, d.config, Dropout(kGapBegin, kGapLength, 1, kBurstBegin, kBurstLength));
   EXPECT_GE(run.scans_dropped, 14u);
   const Tally n = Count(run.results);
   EXPECT_EQ(n.resets, 0u);
@@ -264,20 +261,21 @@ TEST_P(ImuLoss, DropoutThroughABendWithASecondAndAHalfOfScansDropped) {
   }
   std::cout << "[ IMU loss + 1.5 s of scans dropped in a bend ] " << c.name << ": step over the "
             << "dropped scans off by " << long_step << " m; steps in the 0.5 s after it off by "
-            << "up to " << first << " m, in the 2.5 s after those up to " << settled << " m (t="
-            << settled_at << " s)\n";
+            << "up to " << first << " m, in the 2.5 s after those up to " << settled
+            << " m (t=" << settled_at << " s)\n";
   EXPECT_GT(long_step, 0.0) << "no step spans the dropped scans";
   EXPECT_LE(long_step, 0.3);
   EXPECT_LE(first, 0.25);
   EXPECT_LE(settled, 0.06) << "at t=" << settled_at << " s";
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Simulated, ImuLoss,
-    ::testing::Values(Case{"urban_vlp16_knn", "--scene urban --lidar vlp16", "vlp16",
-                           ppf::Mode::kKnn},
-                      Case{"urban_hdl32_ppf", "--scene urban --lidar hdl32", "hdl32",
-                           ppf::Mode::kPpf}),
-    [](const ::testing::TestParamInfo<Case>& info) { return info.param.name; });
+INSTANTIATE_TEST_SUITE_P(Simulated, ImuLoss,
+                         ::testing::Values(Case{"urban_vlp16_knn", "--scene urban --lidar vlp16",
+                                                "vlp16", ppf::Mode::kKnn},
+                                           Case{"urban_hdl32_ppf", "--scene urban --lidar hdl32",
+                                                "hdl32", ppf::Mode::kPpf}),
+                         [](const ::testing::TestParamInfo<Case>& info) {
+                           return info.param.name;
+                         });
 
 }  // namespace

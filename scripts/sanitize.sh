@@ -19,7 +19,9 @@
 # instrumented node cannot keep on 2 cores; it runs in the Release stage. So do, for the same
 # reason, the tests that assert real-time delivery without drops end to end (EndToEnd,
 # AsDocumented, Faults, ReplayRecordRos1, Hostile's 3 s IMU dropout while driving: in CI its ASan
-# node dropped 51 of 120 urban VLP-16 scans): here the whole core is instrumented (under TSan it is
+# node dropped 51 of 120 urban VLP-16 scans; Hostile's 2 s IMU dropout at rest: in a fresh-clone
+# CI run at load its ASan node dropped 5 of 80 scans, 12 of 80 when rerun beside a build, where
+# the test asserts odometry for every scan): here the whole core is instrumented (under TSan it is
 # the Release build), and at load 7-9 an ASan node dropped 28 of 50 HDL-32 scans in AsDocumented
 # and exceeded EndToEnd's 300 MB bound (415 MB: ASan's quarantine and shadow). They run in the
 # Release and TSan stages.
@@ -96,7 +98,7 @@ case "$kind" in
     rc=$?
     ASAN_OPTIONS="$ASAN_OPTIONS:new_delete_type_mismatch=0" \
       run_tests build-asan install-asan ppf_dds_node \
-      --ctest-args -E "MultiHost|EndToEnd|AsDocumented|Faults|ReplayRecordRos1|ImuDropoutOfThreeSeconds" \
+      --ctest-args -E "MultiHost|EndToEnd|AsDocumented|Faults|ReplayRecordRos1|ImuDropoutOf" \
       --timeout 900 ||
       rc=$?
     exit $rc

@@ -120,10 +120,12 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   const int unknown_lines = CountLinesWith(log, "has unknown datatype 42") -
                             CountLinesWith(log, "similar since the last line) last: ");
   // How many lines pass depends on how fast the burst arrives (0.05 s interval here): under
-  // ThreadSanitizer the node takes it in slower (15 lines seen), so the bound is wider there.
+  // ThreadSanitizer the node takes it in slower (15 lines seen; 27 in a fresh-clone CI run while
+  // another build ran beside it), so the bounds are wider there. The sum below still accounts
+  // for every one of the 32.
   EXPECT_GE(unknown_lines, 2);
-  EXPECT_LE(unknown_lines, kUnderTsan ? 24 : 10);
-  EXPECT_GE(SuppressedIn(log, bad), 8) << "the burst was not rate limited";
+  EXPECT_LE(unknown_lines, kUnderTsan ? 30 : 10);
+  EXPECT_GE(SuppressedIn(log, bad), kUnderTsan ? 2 : 8) << "the burst was not rate limited";
   EXPECT_EQ(unknown_lines + SuppressedIn(log, bad), 32);
   EXPECT_EQ(SummaryField(s, "scans_malformed"), 8 + 32);
 
@@ -314,8 +316,17 @@ TEST(Hostile, ImuDropoutOfThreeSecondsWhileDrivingFallsBackToLidarOnlyAndResumes
   EXPECT_EQ(SummaryField(s, "imu_fallbacks"), 1);
   EXPECT_GE(SummaryField(s, "imu_fallback_scans"), 20);
   EXPECT_EQ(SummaryField(s, "scans_bad_stamp"), 0);
+  // Odometry for every scan the core was given. The Release node keeps up and drops none; under
+  // ThreadSanitizer the instrumented node dropped 7 of 120 from its queue (counted) in a
+  // fresh-clone CI run while another build ran beside it.
+  const double dropped = SummaryField(s, "scans_dropped");
+  if (kUnderTsan) {
+    EXPECT_LE(dropped, 0.1 * clouds);
+  } else {
+    EXPECT_EQ(dropped, 0);
+  }
   EXPECT_EQ(SummaryField(s, "odometry_published"),
-            clouds - SummaryField(s, "scans_initializing"))
+            clouds - dropped - SummaryField(s, "scans_initializing"))
       << "a scan without odometry";
   ppf::Trajectory est;
   ASSERT_TRUE(ppf::ReadTum(dir + "/node.tum", &est, &error)) << error;

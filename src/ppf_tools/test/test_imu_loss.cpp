@@ -29,6 +29,10 @@ struct Case {
   ppf::Mode mode;
 };
 
+// gtest prints a parameter with this (else as raw bytes, pointers included, in every test's
+// CTest name).
+std::ostream& operator<<(std::ostream& os, const Case& c) { return os << c.name; }
+
 // Nearest ground-truth pose (ppf_sim writes one per IMU sample, 5 ms apart).
 const ppf::StampedPose* Nearest(const ppf::Trajectory& gt, double t) {
   auto it = std::lower_bound(gt.begin(), gt.end(), t,

@@ -119,6 +119,10 @@ static int create_endpoints(dds_domainid_t domain, endpoints_t* e) {
   dds_qset_history(wq, DDS_HISTORY_KEEP_LAST, 200);
   dds_qset_data_representation(wq, 1, xcdr1);
   e->w_points = dds_create_writer(e->pp, t_points, wq, NULL);
+  /* IMU: 10 s of 200 Hz kept for retransmission. While the node's receive thread decodes a huge
+   * cloud (seconds when instrumented) IMU datagrams overflow its socket buffer; a 1 s history had
+   * already moved on when the node asked for them again, and they were lost to the test. */
+  dds_qset_history(wq, DDS_HISTORY_KEEP_LAST, 2000);
   e->w_imu = dds_create_writer(e->pp, t_imu, wq, NULL);
   dds_qos_t* rq = dds_create_qos();
   dds_qset_reliability(rq, DDS_RELIABILITY_RELIABLE, DDS_SECS(2));

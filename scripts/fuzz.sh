@@ -37,17 +37,18 @@ set -u
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 mkdir -p fuzz-out/crashes
 
-failed=0
-for t in "${targets[@]}"; do
-  exe="$bin_dir/$t"
+# One target: its line (and, on failure, the log's tail) into fuzz-out/<target>.result, its stage
+# line into fuzz-out/<target>.stage; the caller prints them in order.
+run_target() {
+  local t="$1" exe="$bin_dir/$1" start rc elapsed execs last cov ft corp status
+  local result="fuzz-out/$t.result"
   if [ ! -x "$exe" ]; then
-    echo "FAIL  $t: not built ($exe)"
-    failed=1
-    [ -n "${PPF_STAGE_RESULTS:-}" ] && echo "FAIL 0 fuzz $t" >>"$PPF_STAGE_RESULTS"
-    continue
+    echo "FAIL  $t: not built ($exe)" >"$result"
+    echo "FAIL 0 fuzz $t" >"fuzz-out/$t.stage"
+    return
   fi
   mkdir -p "fuzz-out/corpus/$t"
-  inputs=("fuzz-out/corpus/$t" "fuzz/corpus/$t")
+  local inputs=("fuzz-out/corpus/$t" "fuzz/corpus/$t")
   [ -d "fuzz/regressions/$t" ] && inputs+=("fuzz/regressions/$t")
   start=$(date +%s)
   # timeout: a hang inside libFuzzer's own shutdown must not stall CI; -timeout bounds one input.
@@ -61,18 +62,37 @@ for t in "${targets[@]}"; do
   cov=$(sed -n 's/.* cov: \([0-9]*\).*/\1/p' <<<"$last")
   ft=$(sed -n 's/.* ft: \([0-9]*\).*/\1/p' <<<"$last")
   corp=$(sed -n 's/.* corp: \([0-9]*\/[0-9]*[a-zA-Z]*\).*/\1/p' <<<"$last")
-  if [ $rc -eq 0 ]; then
-    status=PASS
-  else
-    status=FAIL
-    failed=1
-  fi
+  status=PASS
+  [ $rc -eq 0 ] || status=FAIL
   printf '%s  %-22s %4d s  %10s execs  cov %6s  ft %6s  corpus %s\n' "$status" "$t" "$elapsed" \
-    "${execs:-?}" "${cov:-?}" "${ft:-?}" "${corp:-?}"
+    "${execs:-?}" "${cov:-?}" "${ft:-?}" "${corp:-?}" >"$result"
   if [ "$status" = FAIL ]; then
-    echo "----- $t (exit $rc), last lines of fuzz-out/$t.log -----"
-    tail -40 "fuzz-out/$t.log"
+    { echo "----- $t (exit $rc), last lines of fuzz-out/$t.log -----"; tail -40 "fuzz-out/$t.log"; } \
+      >>"$result"
   fi
-  [ -n "${PPF_STAGE_RESULTS:-}" ] && echo "$status $elapsed fuzz $t" >>"$PPF_STAGE_RESULTS"
+  echo "$status $elapsed fuzz $t" >"fuzz-out/$t.stage"
+}
+
+# Targets run PPF_FUZZ_JOBS at a time (default 2, one per core of a CI machine): each is a
+# single-threaded process, so two side by side keep each one's seconds of fuzzing and halve the
+# stage's wall time.
+jobs="${PPF_FUZZ_JOBS:-2}"
+running=0
+for t in "${targets[@]}"; do
+  rm -f "fuzz-out/$t.result" "fuzz-out/$t.stage"
+  run_target "$t" &
+  running=$((running + 1))
+  if [ "$running" -ge "$jobs" ]; then
+    wait -n
+    running=$((running - 1))
+  fi
+done
+wait
+
+failed=0
+for t in "${targets[@]}"; do
+  cat "fuzz-out/$t.result"
+  grep -q '^PASS' "fuzz-out/$t.stage" || failed=1
+  [ -n "${PPF_STAGE_RESULTS:-}" ] && cat "fuzz-out/$t.stage" >>"$PPF_STAGE_RESULTS"
 done
 exit $failed

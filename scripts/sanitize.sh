@@ -94,9 +94,12 @@ case "$kind" in
     build build-asan install-asan "$SAN/asan.cmake" --packages-up-to ppf_fuzz ppf_sim ppf_dds_node ||
       exit 1
     source_setup install-asan/setup.bash
+    # Two tests at a time: these packages' tests are single-threaded computations on synthetic
+    # data with no clock in their checks (the core's end-to-end runs use one thread), so the
+    # second core halves the stage's longest part.
     run_tests build-asan install-asan ppf_msgs_idl ppf_msgs_cdr ppf_trajectory ppf_core ppf_bridge \
       ppf_bag ppf_sim ppf_fuzz \
-      --ctest-args --timeout 900
+      --ctest-args --timeout 900 -j2
     rc=$?
     # ppf_tools is built here for the node's tests: its unit tests and its command-line refusals
     # (message and exit 1, so a leak report at exit fails them) run; its runs through the offline

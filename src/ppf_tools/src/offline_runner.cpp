@@ -8,6 +8,32 @@
 #include <utility>
 
 namespace ppf::tools {
+namespace {
+
+// OfflineOptions::drop_scans_*: whether the scan at t (seconds after the first message) is one
+// the starved node would have dropped. Counts the scans of the window as they come.
+class ScanDropper {
+ public:
+  explicit ScanDropper(const OfflineOptions& o)
+      : every_(o.drop_scans_every),
+        begin_s_(o.drop_scans_begin_s),
+        length_s_(o.drop_scans_length_s),
+        active_(every_ > 1 || (every_ == 1 && length_s_ > 0.0)) {}
+
+  bool Drops(double t) {
+    if (!active_) return false;
+    if (length_s_ > 0.0 && (t < begin_s_ || t >= begin_s_ + length_s_)) return false;
+    return ++in_window_ % static_cast<uint64_t>(every_) == 0;
+  }
+
+ private:
+  int every_;
+  double begin_s_, length_s_;
+  bool active_;
+  uint64_t in_window_ = 0;
+};
+
+}  // namespace
 
 OfflineRun RunOffline(const std::string& bag_path, const Config& config,
                       const OfflineOptions& options) {
@@ -66,16 +92,10 @@ OfflineRun RunOffline(const std::string& bag_path, const Config& config,
     imu_fed = s.stamp_s;
     if (options.imu_lead_s > 0.0) process_if_led();
   };
-  uint64_t scans_in_window = 0;
+  ScanDropper dropper(options);
   callbacks.on_scan = [&](const CloudView& v) {
     note_first(v.stamp_s);
-    const double t = v.stamp_s - first_stamp;
-    if ((options.drop_scans_every > 1 ||
-         (options.drop_scans_every == 1 && options.drop_scans_length_s > 0.0)) &&
-        (options.drop_scans_length_s <= 0.0 ||
-         (t >= options.drop_scans_begin_s &&
-          t < options.drop_scans_begin_s + options.drop_scans_length_s)) &&
-        ++scans_in_window % static_cast<uint64_t>(options.drop_scans_every) == 0) {
+    if (dropper.Drops(v.stamp_s - first_stamp)) {
       ++run.scans_dropped;
       return;
     }

@@ -37,11 +37,11 @@ struct OfflineOptions {
   // --imu-gap makes one over DDS). Dropped samples count in OfflineRun::imu_dropped.
   double imu_gap_begin_s = 0.0;
   double imu_gap_length_s = 0.0;
-  // > 1: every drop_scans_every-th scan (counted from the first in the window) never reaches
-  // the core, as when a node starved of CPU drops scans from its queue; 2 drops half; 1 drops
-  // every scan of the window (a burst; needs drop_scans_length_s > 0). Only
-  // scans from drop_scans_begin_s to drop_scans_begin_s + drop_scans_length_s after the first
-  // message, if drop_scans_length_s > 0, else all. Dropped scans count in
+  // Scans that never reach the core, as when a node starved of CPU drops them from its queue:
+  // every drop_scans_every-th scan (counted from the first in the window; 2 drops half, 1 drops
+  // every scan, a burst, and needs drop_scans_length_s > 0; 0 drops none) from
+  // drop_scans_begin_s to drop_scans_begin_s + drop_scans_length_s after the first message, or
+  // over the whole run if drop_scans_length_s is 0. Dropped scans count in
   // OfflineRun::scans_dropped and yield no result.
   int drop_scans_every = 0;
   double drop_scans_begin_s = 0.0;

@@ -88,6 +88,93 @@ void RefineGate(double refined_gate, const Eigen::Isometry3d& T_world_lidar,
   rows->resize(kept);
 }
 
+// The rows of one iteration from every provider (or the last iteration's, re-gated), with each
+// provider's count in the report. `ends[i]`: one past provider i's last row.
+void GatherRows(const IekfOptions& options, int iter, bool reuse_rows,
+                const Eigen::Isometry3d& T_world_lidar,
+                const std::vector<ResidualProvider*>& providers, std::vector<PointPlaneRow>* rows,
+                std::vector<size_t>* ends, IekfReport* report) {
+  report->rows_per_provider.assign(providers.size(), 0);
+  if (!reuse_rows) {
+    rows->clear();
+    for (size_t i = 0; i < providers.size(); ++i) {
+      providers[i]->ComputeRows(T_world_lidar, rows);
+      (*ends)[i] = rows->size();
+    }
+  }
+  if (iter > 0 && options.refined_gate > 0.0) {
+    RefineGate(options.refined_gate, T_world_lidar, rows, ends);
+  }
+  for (size_t i = 0; i < providers.size(); ++i) {
+    report->rows_per_provider[i] = static_cast<int>((*ends)[i] - (i == 0 ? 0 : (*ends)[i - 1]));
+  }
+  report->num_rows = static_cast<int>(rows->size());
+}
+
+// The rows' normal equations in the pose block. J = d r / d [dtheta, dp]. JtJ (row weights
+// only) judges the geometry; the update uses the rows' range-dependent noise too (JtJ_noise,
+// Jtr), so a far row counts less but still pins a direction nothing else observes.
+struct NormalEquations {
+  Mat6 JtJ = Mat6::Zero();
+  Mat6 JtJ_noise = Mat6::Zero();
+  Vec6 Jtr = Vec6::Zero();
+};
+
+NormalEquations BuildNormalEquations(const IekfOptions& options,
+                                     const Eigen::Isometry3d& T_imu_lidar, const NavState& x,
+                                     const std::vector<PointPlaneRow>& rows) {
+  // Serial: a few thousand 6-vectors cost less than waking a thread team.
+  const long n = static_cast<long>(rows.size());
+  std::vector<Vec6> J(rows.size());
+  std::vector<double> r(rows.size());
+  const Eigen::Matrix3d R = x.R_world_imu;
+  const Eigen::Vector3d p = x.p_world_imu;
+  for (long i = 0; i < n; ++i) {
+    const PointPlaneRow& row = rows[static_cast<size_t>(i)];
+    const Eigen::Vector3d p_imu = T_imu_lidar * row.point_lidar;
+    r[static_cast<size_t>(i)] = row.normal_world.dot(R * p_imu + p) + row.offset;
+    Vec6& j = J[static_cast<size_t>(i)];
+    j.head<3>() = p_imu.cross(R.transpose() * row.normal_world);
+    j.tail<3>() = row.normal_world;
+  }
+  NormalEquations ne;
+  const double ang_var = options.laser_angular_std * options.laser_angular_std;
+  const double lin_var = options.laser_point_std * options.laser_point_std;
+  for (long i = 0; i < n; ++i) {
+    const PointPlaneRow& row = rows[static_cast<size_t>(i)];
+    const Vec6& j = J[static_cast<size_t>(i)];
+    const Mat6 jjt = j * j.transpose();
+    ne.JtJ.noalias() += row.weight * jjt;
+    const double w = row.weight * lin_var / (lin_var + ang_var * row.point_lidar.squaredNorm());
+    ne.JtJ_noise.noalias() += w * jjt;
+    ne.Jtr.noalias() += w * j * r[static_cast<size_t>(i)];
+  }
+  return ne;
+}
+
+// The measurement's information H and vector b, with the directions the geometry leaves weak
+// removed when there are any (the report says which): measurements say nothing trustworthy
+// there, so the IMU prediction (and its covariance) stays in charge.
+void MeasurementInformation(const IekfOptions& options, const NormalEquations& ne, Mat6* H,
+                            Vec6* b, IekfReport* report) {
+  report->degenerate_reason.clear();
+  Mat6 proj = Mat6::Zero();
+  proj.topLeftCorner<3, 3>() =
+      StrongProjector(ne.JtJ.topLeftCorner<3, 3>(), options.degeneracy_min_eig_rotation,
+                      "rotation", &report->eig_rotation, &report->degenerate_reason);
+  proj.bottomRightCorner<3, 3>() =
+      StrongProjector(ne.JtJ.bottomRightCorner<3, 3>(), options.degeneracy_min_eig_translation,
+                      "translation", &report->eig_translation, &report->degenerate_reason);
+  report->degenerate = !report->degenerate_reason.empty();
+  const double inv_var = 1.0 / (options.laser_point_std * options.laser_point_std);
+  *H = inv_var * ne.JtJ_noise;
+  *b = inv_var * ne.Jtr;
+  if (report->degenerate) {
+    *H = proj * *H * proj;
+    *b = proj * *b;
+  }
+}
+
 }  // namespace
 
 IekfReport IekfUpdate(const IekfOptions& options, const Eigen::Isometry3d& T_imu_lidar,
@@ -97,7 +184,6 @@ IekfReport IekfUpdate(const IekfOptions& options, const Eigen::Isometry3d& T_imu
   NavState x = prior;
   const Eigen::LDLT<StateCov> prior_ldlt(prior.P);
   const StateCov P_inv = prior_ldlt.solve(StateCov::Identity());
-  const double inv_var = 1.0 / (options.laser_point_std * options.laser_point_std);
   std::vector<PointPlaneRow> rows;
   StateCov A = P_inv;
   bool have_A = false;
@@ -108,79 +194,19 @@ IekfReport IekfUpdate(const IekfOptions& options, const Eigen::Isometry3d& T_imu
   for (int iter = 0; iter < max_iter; ++iter) {
     auto t0 = std::chrono::steady_clock::now();
     const Eigen::Isometry3d T_world_lidar = x.T_world_imu() * T_imu_lidar;
-    report.rows_per_provider.assign(providers.size(), 0);
-    if (!reuse_rows) {
-      rows.clear();
-      for (size_t i = 0; i < providers.size(); ++i) {
-        providers[i]->ComputeRows(T_world_lidar, &rows);
-        ends[i] = rows.size();
-      }
-    }
-    if (iter > 0 && options.refined_gate > 0.0) {
-      RefineGate(options.refined_gate, T_world_lidar, &rows, &ends);
-    }
-    for (size_t i = 0; i < providers.size(); ++i) {
-      report.rows_per_provider[i] = static_cast<int>(ends[i] - (i == 0 ? 0 : ends[i - 1]));
-    }
+    GatherRows(options, iter, reuse_rows, T_world_lidar, providers, &rows, &ends, &report);
     report.residuals_ms += MsSince(t0);
-    report.num_rows = static_cast<int>(rows.size());
     t0 = std::chrono::steady_clock::now();
     if (report.num_rows < options.min_rows) {
       report.skipped = true;
       report.update_ms += MsSince(t0);
       break;
     }
-
-    // Rows -> normal equations of the pose block. J = d r / d [dtheta, dp]. Serial: a few
-    // thousand 6-vectors cost less than waking a thread team.
-    const long n = static_cast<long>(rows.size());
-    std::vector<Vec6> J(rows.size());
-    std::vector<double> r(rows.size());
-    const Eigen::Matrix3d R = x.R_world_imu;
-    const Eigen::Vector3d p = x.p_world_imu;
-    for (long i = 0; i < n; ++i) {
-      const PointPlaneRow& row = rows[static_cast<size_t>(i)];
-      const Eigen::Vector3d p_imu = T_imu_lidar * row.point_lidar;
-      r[static_cast<size_t>(i)] = row.normal_world.dot(R * p_imu + p) + row.offset;
-      Vec6& j = J[static_cast<size_t>(i)];
-      j.head<3>() = p_imu.cross(R.transpose() * row.normal_world);
-      j.tail<3>() = row.normal_world;
-    }
-    // JtJ (row weights only) judges the geometry; the update uses the rows' range-dependent noise
-    // too, so a far row counts less but still pins a direction nothing else observes.
-    Mat6 JtJ = Mat6::Zero();
-    Mat6 JtJ_noise = Mat6::Zero();
-    Vec6 Jtr = Vec6::Zero();
-    const double ang_var = options.laser_angular_std * options.laser_angular_std;
-    const double lin_var = options.laser_point_std * options.laser_point_std;
-    for (long i = 0; i < n; ++i) {
-      const PointPlaneRow& row = rows[static_cast<size_t>(i)];
-      const Vec6& j = J[static_cast<size_t>(i)];
-      const Mat6 jjt = j * j.transpose();
-      JtJ.noalias() += row.weight * jjt;
-      const double w = row.weight * lin_var / (lin_var + ang_var * row.point_lidar.squaredNorm());
-      JtJ_noise.noalias() += w * jjt;
-      Jtr.noalias() += w * j * r[static_cast<size_t>(i)];
-    }
-
-    // Degeneracy from the first iteration's geometry (later ones see nearly the same matches).
-    report.degenerate_reason.clear();
-    Mat6 proj = Mat6::Zero();
-    proj.topLeftCorner<3, 3>() =
-        StrongProjector(JtJ.topLeftCorner<3, 3>(), options.degeneracy_min_eig_rotation, "rotation",
-                        &report.eig_rotation, &report.degenerate_reason);
-    proj.bottomRightCorner<3, 3>() =
-        StrongProjector(JtJ.bottomRightCorner<3, 3>(), options.degeneracy_min_eig_translation,
-                        "translation", &report.eig_translation, &report.degenerate_reason);
-    report.degenerate = !report.degenerate_reason.empty();
-    Mat6 H = inv_var * JtJ_noise;
-    Vec6 b = inv_var * Jtr;
-    if (report.degenerate) {
-      // Measurements say nothing trustworthy along weak directions: drop them there so the
-      // IMU prediction (and its covariance) stays in charge.
-      H = proj * H * proj;
-      b = proj * b;
-    }
+    // Degeneracy from each iteration's geometry (later ones see nearly the same matches).
+    Mat6 H;
+    Vec6 b;
+    MeasurementInformation(options, BuildNormalEquations(options, T_imu_lidar, x, rows), &H, &b,
+                           &report);
 
     const StateVec d_prior = BoxMinus(x, prior);
     A = P_inv;

@@ -113,14 +113,8 @@ void PlanePrefitter::Accept(const Plane& plane, bool from_guess, int64_t track_i
   remaining_index_.swap(next_index_);
 }
 
-void PlanePrefitter::Fit(const std::vector<Eigen::Vector3f>& points,
-                         const std::vector<PlaneGuess>& guesses, PrefitResult* result) {
-  *result = PrefitResult{};
-#ifdef _OPENMP
-  const int saved_threads = omp_get_max_threads();
-  if (config_.num_threads > 0) omp_set_num_threads(config_.num_threads);
-#endif
-
+void PlanePrefitter::TakeFinite(const std::vector<Eigen::Vector3f>& points,
+                                PrefitResult* result) {
   remaining_.clear();
   remaining_index_.clear();
   remaining_.reserve(points.size());
@@ -133,48 +127,46 @@ void PlanePrefitter::Fit(const std::vector<Eigen::Vector3f>& points,
       result->discarded_indices.push_back(static_cast<int>(i));
     }
   }
-  const size_t input = remaining_.size();
-  const double min_remaining = config_.min_remaining_ratio * static_cast<double>(input);
-  const int least = std::max(3, config_.plane_least_inliers);
-  const int max_planes = config_.max_planes_per_scan;
+}
 
-  // Returns true (and sets the reason) when fitting must stop before the next plane.
-  auto should_stop = [&]() {
-    if (remaining_.size() < 3) {
-      result->stop = result->planes.empty() ? PrefitStop::kEmptyInput : PrefitStop::kFewRemaining;
-      return true;
-    }
-    if (static_cast<double>(remaining_.size()) < min_remaining) {
-      result->stop = PrefitStop::kFewRemaining;
-      return true;
-    }
-    if (static_cast<int>(result->planes.size()) >= max_planes) {
-      result->stop = PrefitStop::kMaxPlanes;
-      return true;
-    }
-    return false;
-  };
-
-  bool stopped = should_stop();
-  if (config_.incremental_fitting) {
-    for (const PlaneGuess& guess : guesses) {
-      if (stopped || (stopped = should_stop())) break;
-      ++result->guesses_tried;
-      // Cheap check first: most wrong guesses die here without any PCA.
-      if (CountPlaneInliers(remaining_, guess.plane, config_.delta) < least) continue;
-      const IpcaResult refined = RefinePlaneIpca(remaining_, guess.plane, config_.delta,
-                                                 config_.ipca_iterations_guess, least);
-      if (!refined.success) continue;
-      // A rejected guess leaves its points for RANSAC, like any other failed guess.
-      if (!SplitAndCheckShape(refined.plane)) {
-        ++result->shape_rejected;
-        continue;
-      }
-      ++result->guesses_accepted;
-      Accept(refined.plane, true, guess.track_id, refined.iterations, result);
-    }
+bool PlanePrefitter::ShouldStop(double min_remaining, PrefitResult* result) const {
+  if (remaining_.size() < 3) {
+    result->stop = result->planes.empty() ? PrefitStop::kEmptyInput : PrefitStop::kFewRemaining;
+    return true;
   }
+  if (static_cast<double>(remaining_.size()) < min_remaining) {
+    result->stop = PrefitStop::kFewRemaining;
+    return true;
+  }
+  if (static_cast<int>(result->planes.size()) >= config_.max_planes_per_scan) {
+    result->stop = PrefitStop::kMaxPlanes;
+    return true;
+  }
+  return false;
+}
 
+bool PlanePrefitter::FitGuesses(const std::vector<PlaneGuess>& guesses, int least,
+                                double min_remaining, PrefitResult* result) {
+  for (const PlaneGuess& guess : guesses) {
+    if (ShouldStop(min_remaining, result)) return true;
+    ++result->guesses_tried;
+    // Cheap check first: most wrong guesses die here without any PCA.
+    if (CountPlaneInliers(remaining_, guess.plane, config_.delta) < least) continue;
+    const IpcaResult refined = RefinePlaneIpca(remaining_, guess.plane, config_.delta,
+                                               config_.ipca_iterations_guess, least);
+    if (!refined.success) continue;
+    // A rejected guess leaves its points for RANSAC, like any other failed guess.
+    if (!SplitAndCheckShape(refined.plane)) {
+      ++result->shape_rejected;
+      continue;
+    }
+    ++result->guesses_accepted;
+    Accept(refined.plane, true, guess.track_id, refined.iterations, result);
+  }
+  return false;
+}
+
+void PlanePrefitter::FitNewPlanes(int least, double min_remaining, PrefitResult* result) {
   RansacParams params;
   params.delta = config_.delta;
   params.min_inliers = least;
@@ -183,13 +175,13 @@ void PlanePrefitter::Fit(const std::vector<Eigen::Vector3f>& points,
   params.max_degenerate_samples = config_.ransac_max_degenerate_samples;
   params.min_sample_area = config_.ransac_min_sample_area;
   SplitMix64 rng(config_.ransac_seed);
-  while (!stopped && !(stopped = should_stop())) {
+  while (!ShouldStop(min_remaining, result)) {
     ++result->ransac_runs;
     const RansacResult fit = FitPlaneRansac(remaining_, params, &rng);
     result->ransac_iterations += fit.iterations;
     if (!fit.success) {
       result->stop = PrefitStop::kRansacFailed;
-      break;
+      return;
     }
     const IpcaResult refined =
         RefinePlaneIpca(remaining_, fit.plane, config_.delta, config_.ipca_iterations_new, least);
@@ -208,6 +200,23 @@ void PlanePrefitter::Fit(const std::vector<Eigen::Vector3f>& points,
     // loop always makes progress.
     Reject(fit.plane, result);
   }
+}
+
+void PlanePrefitter::Fit(const std::vector<Eigen::Vector3f>& points,
+                         const std::vector<PlaneGuess>& guesses, PrefitResult* result) {
+  *result = PrefitResult{};
+#ifdef _OPENMP
+  const int saved_threads = omp_get_max_threads();
+  if (config_.num_threads > 0) omp_set_num_threads(config_.num_threads);
+#endif
+  TakeFinite(points, result);
+  const double min_remaining =
+      config_.min_remaining_ratio * static_cast<double>(remaining_.size());
+  const int least = std::max(3, config_.plane_least_inliers);
+  const bool stopped = config_.incremental_fitting
+                           ? FitGuesses(guesses, least, min_remaining, result)
+                           : ShouldStop(min_remaining, result);
+  if (!stopped) FitNewPlanes(least, min_remaining, result);
 
   result->scattered_indices.insert(result->scattered_indices.end(), remaining_index_.begin(),
                                    remaining_index_.end());

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <tuple>
+#include <vector>
 
 namespace ppf {
 
@@ -31,50 +32,59 @@ std::vector<Plane> SkeletonWindow::WorldPlanes() const {
   return out;
 }
 
-std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitted,
-                                            const Eigen::Isometry3d& T_world_lidar) {
+namespace {
+
+// The fitted planes and their inlier moments (centroid, scatter) in the world frame. New tracks
+// face the sensor (sensor origin on the positive side): a convention users can rely on, and it
+// makes the orientation independent of RANSAC's sample order.
+void FittedInWorld(const std::vector<FittedPlane>& fitted, const Eigen::Isometry3d& T_world_lidar,
+                   std::vector<Plane>* world, std::vector<PlaneMoments>* moments) {
   const size_t nf = fitted.size();
-  std::vector<Plane> world(nf);
-  std::vector<PlaneMoments> moments(nf);  // world: centroid and scatter of the inliers
+  world->resize(nf);
+  moments->resize(nf);
   for (size_t i = 0; i < nf; ++i) {
     Plane pl = fitted[i].plane;
-    // New tracks face the sensor (sensor origin on the positive side): a convention users can
-    // rely on, and it makes the orientation independent of RANSAC's sample order.
     if (pl.d < 0.0) pl = pl.Flipped();
-    world[i] = TransformPlane(T_world_lidar, pl);
+    (*world)[i] = TransformPlane(T_world_lidar, pl);
     PlaneMoments m;
     m.count = fitted[i].num_inliers;
     m.centroid = fitted[i].centroid;
     m.scatter = fitted[i].scatter;
-    moments[i] = m.Transformed(T_world_lidar);
+    (*moments)[i] = m.Transformed(T_world_lidar);
   }
+}
 
-  std::vector<int> track_of(nf, -1);  // fitted -> index in planes_
-  std::vector<bool> claimed(planes_.size(), false);
-
-  // 1. Accepted guesses continue the track they were guessed from.
-  for (size_t i = 0; i < nf; ++i) {
+// 1. Accepted guesses continue the track they were guessed from.
+void ContinueGuessedTracks(const std::vector<FittedPlane>& fitted,
+                           const std::vector<SkeletonPlane>& tracks, std::vector<int>* track_of,
+                           std::vector<bool>* claimed) {
+  for (size_t i = 0; i < fitted.size(); ++i) {
     if (!fitted[i].from_guess) continue;
-    for (size_t j = 0; j < planes_.size(); ++j) {
-      if (!claimed[j] && planes_[j].track_id == fitted[i].guess_track_id) {
-        claimed[j] = true;
-        track_of[i] = static_cast<int>(j);
+    for (size_t j = 0; j < tracks.size(); ++j) {
+      if (!(*claimed)[j] && tracks[j].track_id == fitted[i].guess_track_id) {
+        (*claimed)[j] = true;
+        (*track_of)[i] = static_cast<int>(j);
         break;
       }
     }
   }
+}
 
-  // 2. Geometric association for the rest: greedy on a normalised angle + offset cost, which is
-  // enough for <= 5 planes per scan (an optimal assignment would not change realistic outcomes).
-  const double max_angle = config_.track_max_angle_deg * M_PI / 180.0;
-  const double max_offset = config_.track_max_offset;
+// 2. Geometric association for the rest: greedy on a normalised angle + offset cost, which is
+// enough for <= 5 planes per scan (an optimal assignment would not change realistic outcomes).
+void AssociateByGeometry(const PpfConfig& config, const std::vector<Plane>& world,
+                         const std::vector<PlaneMoments>& moments,
+                         const std::vector<SkeletonPlane>& tracks, std::vector<int>* track_of,
+                         std::vector<bool>* claimed) {
+  const double max_angle = config.track_max_angle_deg * M_PI / 180.0;
+  const double max_offset = config.track_max_offset;
   std::vector<std::tuple<double, int, int>> candidates;  // cost, fitted, track
-  for (size_t i = 0; i < nf; ++i) {
-    if (track_of[i] >= 0) continue;
-    for (size_t j = 0; j < planes_.size(); ++j) {
-      if (claimed[j]) continue;
-      const double angle = PlaneAngle(world[i], planes_[j].plane);
-      const double offset = planes_[j].plane.Distance(moments[i].centroid);
+  for (size_t i = 0; i < world.size(); ++i) {
+    if ((*track_of)[i] >= 0) continue;
+    for (size_t j = 0; j < tracks.size(); ++j) {
+      if ((*claimed)[j]) continue;
+      const double angle = PlaneAngle(world[i], tracks[j].plane);
+      const double offset = tracks[j].plane.Distance(moments[i].centroid);
       if (angle > max_angle || offset > max_offset) continue;
       const double cost =
           (max_angle > 0 ? angle / max_angle : 0.0) + (max_offset > 0 ? offset / max_offset : 0.0);
@@ -84,10 +94,24 @@ std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitt
   std::sort(candidates.begin(), candidates.end());
   for (const auto& [cost, i, j] : candidates) {
     (void)cost;
-    if (track_of[i] >= 0 || claimed[j]) continue;
-    track_of[i] = j;
-    claimed[j] = true;
+    if ((*track_of)[i] >= 0 || (*claimed)[j]) continue;
+    (*track_of)[i] = j;
+    (*claimed)[j] = true;
   }
+}
+
+}  // namespace
+
+std::vector<int64_t> SkeletonWindow::Update(const std::vector<FittedPlane>& fitted,
+                                            const Eigen::Isometry3d& T_world_lidar) {
+  const size_t nf = fitted.size();
+  std::vector<Plane> world;
+  std::vector<PlaneMoments> moments;
+  FittedInWorld(fitted, T_world_lidar, &world, &moments);
+  std::vector<int> track_of(nf, -1);  // fitted -> index in planes_
+  std::vector<bool> claimed(planes_.size(), false);
+  ContinueGuessedTracks(fitted, planes_, &track_of, &claimed);
+  AssociateByGeometry(config_, world, moments, planes_, &track_of, &claimed);
 
   // 3. Apply: continue matched tracks, age the rest, start new tracks.
   std::vector<int64_t> ids(nf, -1);

@@ -81,6 +81,16 @@ class PlanePrefitter {
            PrefitResult* result);
 
  private:
+  // The finite points become the working set; the others are discarded (result).
+  void TakeFinite(const std::vector<Eigen::Vector3f>& points, PrefitResult* result);
+  // Whether fitting must stop before the next plane (and result->stop says why).
+  bool ShouldStop(double min_remaining, PrefitResult* result) const;
+  // Incremental fitting: each guess refined on the working set and kept if it passes. Returns
+  // whether fitting stopped.
+  bool FitGuesses(const std::vector<PlaneGuess>& guesses, int least, double min_remaining,
+                  PrefitResult* result);
+  // New planes by RANSAC until a stop condition.
+  void FitNewPlanes(int least, double min_remaining, PrefitResult* result);
   // Splits the working set by the sandwich of `plane` (into split_) and returns whether its strict
   // inliers pass the shape tests (max_band_rms_ratio, min_elevation_spread_deg; ppf_config.hpp).
   bool SplitAndCheckShape(const Plane& plane);

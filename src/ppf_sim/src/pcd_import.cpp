@@ -96,57 +96,99 @@ bool EarliestAbsoluteTime(const CloudBuffer& c, int64_t* ns) {
   return false;
 }
 
-}  // namespace
-
-ImportSummary ImportPcdDirectory(const std::string& dir, const std::string& out_dir,
-                                 const BagOutputOptions& bag_opt, const PcdOptions& opt) {
-  ImportSummary sum;
+std::vector<std::string> ListPcdFiles(const std::string& dir) {
   std::vector<std::string> files;
   for (const auto& e : fs::directory_iterator(dir)) {
     if (e.is_regular_file() && e.path().extension() == ".pcd") files.push_back(e.path().string());
   }
   std::sort(files.begin(), files.end());
   if (files.empty()) throw std::runtime_error("no .pcd files in " + dir);
+  return files;
+}
+
+// One time per line (seconds or integer nanoseconds, first column), one per PCD file.
+std::vector<int64_t> ReadStampsFile(const std::string& path, size_t num_files) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot read stamps file " + path);
   std::vector<int64_t> listed;
-  if (!opt.stamps_file.empty()) {
-    std::ifstream in(opt.stamps_file);
-    if (!in) throw std::runtime_error("cannot read stamps file " + opt.stamps_file);
-    std::string line;
-    while (std::getline(in, line)) {
-      line.erase(0, line.find_first_not_of(" \t"));
-      if (line.empty() || line[0] == '#') continue;
-      listed.push_back(ParseTime(line.substr(0, line.find_first_of(" \t,\r"))));
-    }
-    if (listed.size() != files.size())
-      throw std::runtime_error("stamps file has " + std::to_string(listed.size()) +
-                               " times for " + std::to_string(files.size()) + " PCD files");
+  std::string line;
+  while (std::getline(in, line)) {
+    line.erase(0, line.find_first_not_of(" \t"));
+    if (line.empty() || line[0] == '#') continue;
+    listed.push_back(ParseTime(line.substr(0, line.find_first_of(" \t,\r"))));
   }
-  struct Imu {
-    int64_t t;
-    double w[3], a[3];
-  };
-  std::vector<Imu> imu;
-  if (!opt.imu_csv.empty()) {
-    std::ifstream in(opt.imu_csv);
-    if (!in) throw std::runtime_error("cannot read IMU CSV " + opt.imu_csv);
-    std::string line;
-    int line_no = 0;
-    while (std::getline(in, line)) {
-      ++line_no;
-      if (line.empty() || line[0] == '#' || std::isalpha(static_cast<unsigned char>(line[0])))
-        continue;  // header
-      std::replace(line.begin(), line.end(), ',', ' ');
-      std::istringstream ss(line);
-      std::string t;
-      Imu s;
-      if (!(ss >> t >> s.w[0] >> s.w[1] >> s.w[2] >> s.a[0] >> s.a[1] >> s.a[2]))
-        throw std::runtime_error(opt.imu_csv + ":" + std::to_string(line_no) +
-                                 ": expected t,wx,wy,wz,ax,ay,az");
-      s.t = ParseTime(t);
-      imu.push_back(s);
-    }
-    std::stable_sort(imu.begin(), imu.end(), [](const Imu& a, const Imu& b) { return a.t < b.t; });
+  if (listed.size() != num_files)
+    throw std::runtime_error("stamps file has " + std::to_string(listed.size()) + " times for " +
+                             std::to_string(num_files) + " PCD files");
+  return listed;
+}
+
+struct CsvImu {
+  int64_t t;
+  double w[3], a[3];
+};
+
+// t,wx,wy,wz,ax,ay,az per line (header lines skipped), sorted by time.
+std::vector<CsvImu> ReadImuCsv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot read IMU CSV " + path);
+  std::vector<CsvImu> imu;
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty() || line[0] == '#' || std::isalpha(static_cast<unsigned char>(line[0])))
+      continue;  // header
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::istringstream ss(line);
+    std::string t;
+    CsvImu s;
+    if (!(ss >> t >> s.w[0] >> s.w[1] >> s.w[2] >> s.a[0] >> s.a[1] >> s.a[2]))
+      throw std::runtime_error(path + ":" + std::to_string(line_no) +
+                               ": expected t,wx,wy,wz,ax,ay,az");
+    s.t = ParseTime(t);
+    imu.push_back(s);
   }
+  std::stable_sort(imu.begin(), imu.end(),
+                   [](const CsvImu& a, const CsvImu& b) { return a.t < b.t; });
+  return imu;
+}
+
+// The header stamp of scan i, from the first source that has one (in this order); `source`
+// names it.
+int64_t ScanStamp(size_t i, const CloudBuffer& c, const std::string& file,
+                  const std::vector<int64_t>& listed, const PcdOptions& opt, std::string* source) {
+  int64_t stamp = 0;
+  if (!listed.empty()) {
+    *source = "stamps file";
+    return listed[i];
+  }
+  if (opt.rate_hz > 0.0) {
+    *source = "--rate (scan i at i / rate s)";
+    return static_cast<int64_t>(std::llround(static_cast<double>(i) / opt.rate_hz * 1e9));
+  }
+  if (EarliestAbsoluteTime(c, &stamp)) {
+    *source = "per-point absolute time (earliest point)";
+    return stamp;
+  }
+  if (StampFromFileName(file, &stamp)) {
+    *source = "file name";
+    return stamp;
+  }
+  throw std::runtime_error("no time for " + file +
+                           ": no absolute per-point time, no --stamps or --rate, name not a time");
+}
+
+}  // namespace
+
+ImportSummary ImportPcdDirectory(const std::string& dir, const std::string& out_dir,
+                                 const BagOutputOptions& bag_opt, const PcdOptions& opt) {
+  ImportSummary sum;
+  const std::vector<std::string> files = ListPcdFiles(dir);
+  const std::vector<int64_t> listed =
+      opt.stamps_file.empty() ? std::vector<int64_t>() : ReadStampsFile(opt.stamps_file, files.size());
+  const std::vector<CsvImu> imu =
+      opt.imu_csv.empty() ? std::vector<CsvImu>() : ReadImuCsv(opt.imu_csv);
 
   BagOutput bag(out_dir, bag_opt);
   const int64_t period_ns = static_cast<int64_t>(std::llround(opt.scan_period * 1e9));
@@ -157,22 +199,7 @@ ImportSummary ImportPcdDirectory(const std::string& dir, const std::string& out_
   std::string source;
   for (size_t i = 0; i < files.size(); ++i) {
     CloudBuffer c = LoadPcd(files[i]);
-    int64_t stamp = 0;
-    if (!listed.empty()) {
-      stamp = listed[i];
-      source = "stamps file";
-    } else if (opt.rate_hz > 0.0) {
-      stamp = static_cast<int64_t>(std::llround(static_cast<double>(i) / opt.rate_hz * 1e9));
-      source = "--rate (scan i at i / rate s)";
-    } else if (EarliestAbsoluteTime(c, &stamp)) {
-      source = "per-point absolute time (earliest point)";
-    } else if (StampFromFileName(files[i], &stamp)) {
-      source = "file name";
-    } else {
-      throw std::runtime_error(
-          "no time for " + files[i] +
-          ": no absolute per-point time, no --stamps or --rate, name not a time");
-    }
+    const int64_t stamp = ScanStamp(i, c, files[i], listed, opt, &source);
     c.stamp_ns = stamp;
     c.frame_id = opt.lidar_frame;
     flush_imu(stamp + period_ns);

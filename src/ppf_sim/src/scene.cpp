@@ -55,99 +55,123 @@ Primitive MakeBlob(const Eigen::Vector3d& center, const Eigen::Vector3d& radii, 
   return p;
 }
 
-bool IntersectPrimitive(const Primitive& p, const Ray& ray, double tmax, uint32_t salt,
-                        Hit* hit) {
+namespace {
+
+bool IntersectQuad(const Primitive& p, const Ray& ray, double tmax, Hit* hit) {
   const Eigen::Vector3d& o = ray.o;
   const Eigen::Vector3d& d = ray.d;
+  const double den = d.dot(p.n);
+  if (std::abs(den) < 1e-12) return false;
+  const double t = (p.c - o).dot(p.n) / den;
+  if (t <= ray.tmin || t >= tmax) return false;
+  const Eigen::Vector3d q = o + t * d - p.c;
+  if (std::abs(q.dot(p.u)) > p.half.x() || std::abs(q.dot(p.v)) > p.half.y()) return false;
+  hit->t = t;
+  hit->n = p.n;
+  return true;
+}
+
+// Slabs in the box's own axes (u, v, z).
+bool IntersectBox(const Primitive& p, const Ray& ray, double tmax, Hit* hit) {
+  const Eigen::Vector3d& o = ray.o;
+  const Eigen::Vector3d& d = ray.d;
+  const Eigen::Vector3d rel = o - p.c;
+  const double lo[3] = {rel.dot(p.u), rel.dot(p.v), rel.z()};
+  const double ld[3] = {d.dot(p.u), d.dot(p.v), d.z()};
+  double tn = -1e300, tf = 1e300;
+  int axis = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(ld[k]) < 1e-12) {
+      if (std::abs(lo[k]) > p.half[k]) return false;
+      continue;
+    }
+    double ta = (-p.half[k] - lo[k]) / ld[k], tb = (p.half[k] - lo[k]) / ld[k];
+    if (ta > tb) std::swap(ta, tb);
+    if (ta > tn) {
+      tn = ta;
+      axis = k;
+    }
+    tf = std::min(tf, tb);
+  }
+  if (tn > tf || tn <= ray.tmin || tn >= tmax) return false;
+  hit->t = tn;
+  hit->n = axis == 0 ? p.u : axis == 1 ? p.v : Eigen::Vector3d::UnitZ();
+  return true;
+}
+
+// The mantle, then the top cap (the bottom stands on the ground).
+bool IntersectCylinder(const Primitive& p, const Ray& ray, double tmax, Hit* hit) {
+  const Eigen::Vector3d& o = ray.o;
+  const Eigen::Vector3d& d = ray.d;
+  const double r = p.half.x();
+  const double ox = o.x() - p.c.x(), oy = o.y() - p.c.y();
+  bool found = false;
+  double best = tmax;
+  const double a = d.x() * d.x() + d.y() * d.y();
+  if (a > 1e-12) {
+    const double b = ox * d.x() + oy * d.y();
+    const double c = ox * ox + oy * oy - r * r;
+    const double disc = b * b - a * c;
+    if (disc >= 0.0) {
+      const double t = (-b - std::sqrt(disc)) / a;
+      const double z = o.z() + t * d.z() - p.c.z();
+      if (t > ray.tmin && t < best && std::abs(z) <= p.half.z()) {
+        best = t;
+        found = true;
+        hit->n = Eigen::Vector3d(ox + t * d.x(), oy + t * d.y(), 0.0) / r;
+      }
+    }
+  }
+  if (std::abs(d.z()) > 1e-12) {  // top cap
+    const double t = (p.c.z() + p.half.z() - o.z()) / d.z();
+    const double x = ox + t * d.x(), y = oy + t * d.y();
+    if (t > ray.tmin && t < best && x * x + y * y <= r * r) {
+      best = t;
+      found = true;
+      hit->n = Eigen::Vector3d::UnitZ();
+    }
+  }
+  if (found) hit->t = best;
+  return found;
+}
+
+bool IntersectBlob(const Primitive& p, const Ray& ray, double tmax, uint32_t salt, Hit* hit) {
+  const Eigen::Vector3d& o = ray.o;
+  const Eigen::Vector3d& d = ray.d;
+  const Eigen::Vector3d os = (o - p.c).cwiseQuotient(p.half);
+  const Eigen::Vector3d ds = d.cwiseQuotient(p.half);
+  const double a = ds.squaredNorm(), b = os.dot(ds), c = os.squaredNorm() - 1.0;
+  const double disc = b * b - a * c;
+  if (disc < 0.0) return false;
+  const double sq = std::sqrt(disc);
+  double t_in = (-b - sq) / a;
+  const double t_out = (-b + sq) / a;
+  if (t_out <= ray.tmin || t_in >= tmax) return false;
+  t_in = std::max(t_in, ray.tmin);
+  // Foliage: the beam either finds a gap or is stopped at a random depth inside.
+  if (KeyedUniform(ray.key, 3ull * salt + 11) < p.gap) return false;
+  const double u = KeyedUniform(ray.key, 3ull * salt + 12);
+  const double t = t_in - p.scatter_depth * std::log(1.0 - u);
+  if (t >= t_out || t >= tmax) return false;
+  hit->t = t;
+  const Eigen::Vector3d q = (o + t * d - p.c).cwiseQuotient(p.half.cwiseProduct(p.half));
+  hit->n = q.normalized();
+  return true;
+}
+
+}  // namespace
+
+bool IntersectPrimitive(const Primitive& p, const Ray& ray, double tmax, uint32_t salt,
+                        Hit* hit) {
   switch (p.kind) {
-    case PrimKind::kQuad: {
-      const double den = d.dot(p.n);
-      if (std::abs(den) < 1e-12) return false;
-      const double t = (p.c - o).dot(p.n) / den;
-      if (t <= ray.tmin || t >= tmax) return false;
-      const Eigen::Vector3d q = o + t * d - p.c;
-      if (std::abs(q.dot(p.u)) > p.half.x() || std::abs(q.dot(p.v)) > p.half.y()) return false;
-      hit->t = t;
-      hit->n = p.n;
-      return true;
-    }
-    case PrimKind::kBox: {
-      const Eigen::Vector3d rel = o - p.c;
-      const double lo[3] = {rel.dot(p.u), rel.dot(p.v), rel.z()};
-      const double ld[3] = {d.dot(p.u), d.dot(p.v), d.z()};
-      double tn = -1e300, tf = 1e300;
-      int axis = 0;
-      for (int k = 0; k < 3; ++k) {
-        if (std::abs(ld[k]) < 1e-12) {
-          if (std::abs(lo[k]) > p.half[k]) return false;
-          continue;
-        }
-        double ta = (-p.half[k] - lo[k]) / ld[k], tb = (p.half[k] - lo[k]) / ld[k];
-        if (ta > tb) std::swap(ta, tb);
-        if (ta > tn) {
-          tn = ta;
-          axis = k;
-        }
-        tf = std::min(tf, tb);
-      }
-      if (tn > tf || tn <= ray.tmin || tn >= tmax) return false;
-      hit->t = tn;
-      hit->n = axis == 0 ? p.u : axis == 1 ? p.v : Eigen::Vector3d::UnitZ();
-      return true;
-    }
-    case PrimKind::kCylinder: {
-      const double r = p.half.x();
-      const double ox = o.x() - p.c.x(), oy = o.y() - p.c.y();
-      bool found = false;
-      double best = tmax;
-      const double a = d.x() * d.x() + d.y() * d.y();
-      if (a > 1e-12) {
-        const double b = ox * d.x() + oy * d.y();
-        const double c = ox * ox + oy * oy - r * r;
-        const double disc = b * b - a * c;
-        if (disc >= 0.0) {
-          const double t = (-b - std::sqrt(disc)) / a;
-          const double z = o.z() + t * d.z() - p.c.z();
-          if (t > ray.tmin && t < best && std::abs(z) <= p.half.z()) {
-            best = t;
-            found = true;
-            hit->n = Eigen::Vector3d(ox + t * d.x(), oy + t * d.y(), 0.0) / r;
-          }
-        }
-      }
-      if (std::abs(d.z()) > 1e-12) {  // top cap
-        const double t = (p.c.z() + p.half.z() - o.z()) / d.z();
-        const double x = ox + t * d.x(), y = oy + t * d.y();
-        if (t > ray.tmin && t < best && x * x + y * y <= r * r) {
-          best = t;
-          found = true;
-          hit->n = Eigen::Vector3d::UnitZ();
-        }
-      }
-      if (found) hit->t = best;
-      return found;
-    }
-    case PrimKind::kBlob: {
-      const Eigen::Vector3d os = (o - p.c).cwiseQuotient(p.half);
-      const Eigen::Vector3d ds = d.cwiseQuotient(p.half);
-      const double a = ds.squaredNorm(), b = os.dot(ds), c = os.squaredNorm() - 1.0;
-      const double disc = b * b - a * c;
-      if (disc < 0.0) return false;
-      const double sq = std::sqrt(disc);
-      double t_in = (-b - sq) / a;
-      const double t_out = (-b + sq) / a;
-      if (t_out <= ray.tmin || t_in >= tmax) return false;
-      t_in = std::max(t_in, ray.tmin);
-      // Foliage: the beam either finds a gap or is stopped at a random depth inside.
-      if (KeyedUniform(ray.key, 3ull * salt + 11) < p.gap) return false;
-      const double u = KeyedUniform(ray.key, 3ull * salt + 12);
-      const double t = t_in - p.scatter_depth * std::log(1.0 - u);
-      if (t >= t_out || t >= tmax) return false;
-      hit->t = t;
-      const Eigen::Vector3d q = (o + t * d - p.c).cwiseQuotient(p.half.cwiseProduct(p.half));
-      hit->n = q.normalized();
-      return true;
-    }
+    case PrimKind::kQuad:
+      return IntersectQuad(p, ray, tmax, hit);
+    case PrimKind::kBox:
+      return IntersectBox(p, ray, tmax, hit);
+    case PrimKind::kCylinder:
+      return IntersectCylinder(p, ray, tmax, hit);
+    case PrimKind::kBlob:
+      return IntersectBlob(p, ray, tmax, salt, hit);
   }
   return false;
 }

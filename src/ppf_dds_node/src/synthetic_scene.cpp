@@ -6,48 +6,40 @@
 
 #include "ppf_bridge/convert.hpp"
 #include "ppf_msgs_cdr/time.hpp"
+#include "ppf_sim/scene.hpp"
 
 namespace ppf::dds {
 
 namespace {
 
 // Room 24 x 14 x 4.5 m, sensor 1.8 m above the floor, off-centre so no axis is symmetric, and
-// two pillars that break the remaining ambiguity.
+// two pillars that break the remaining ambiguity; in the sensor frame, built from the
+// simulator's primitives and cast with its scene. The walls overlap by 1 cm at the edges so
+// that a ray into a corner always hits one.
+const sim::Scene& Room() {
+  static const sim::Scene scene = [] {
+    const double x0 = -15.0, x1 = 9.0, y0 = -8.0, y1 = 6.0, z0 = -1.8, z1 = 2.7, e = 0.01;
+    const Eigen::Vector3d c(0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.5 * (z0 + z1));
+    const double hx = 0.5 * (x1 - x0) + e, hy = 0.5 * (y1 - y0) + e, hz = 0.5 * (z1 - z0) + e;
+    const Eigen::Vector3d X = Eigen::Vector3d::UnitX(), Y = Eigen::Vector3d::UnitY(),
+                          Z = Eigen::Vector3d::UnitZ();
+    sim::Scene s;
+    for (const double x : {x0, x1}) s.Add(sim::MakeQuad({x, c.y(), c.z()}, Y, hy, Z, hz, 0.3f));
+    for (const double y : {y0, y1}) s.Add(sim::MakeQuad({c.x(), y, c.z()}, X, hx, Z, hz, 0.3f));
+    for (const double z : {z0, z1}) s.Add(sim::MakeQuad({c.x(), c.y(), z}, X, hx, Y, hy, 0.3f));
+    s.Add(sim::MakeBox(3.5, 2.0, 0.0, 0.5, 0.5, z0, z1, 0.3f));
+    s.Add(sim::MakeBox(-5.25, -3.0, 0.0, 0.75, 0.5, z0, z1, 0.3f));
+    s.Build();
+    return s;
+  }();
+  return scene;
+}
+
 double CastRay(double dx, double dy, double dz) {
-  double best = std::numeric_limits<double>::infinity();
-  auto plane = [&](double dir, double pos) {
-    if (std::abs(dir) < 1e-9) return;
-    const double t = pos / dir;
-    if (t > 0 && t < best) best = t;
-  };
-  plane(dx, 9.0);
-  plane(dx, -15.0);
-  plane(dy, 6.0);
-  plane(dy, -8.0);
-  plane(dz, -1.8);
-  plane(dz, 2.7);
-  // Pillars: axis-aligned boxes (x0, x1, y0, y1), floor to ceiling.
-  const double boxes[2][4] = {{3.0, 4.0, 1.5, 2.5}, {-6.0, -4.5, -3.5, -2.5}};
-  for (const auto& b : boxes) {
-    double tmin = 0.0, tmax = best;
-    bool hit = true;
-    const double o[2] = {0.0, 0.0};
-    const double d[2] = {dx, dy};
-    for (int k = 0; k < 2 && hit; ++k) {
-      const double lo = b[2 * k], hi = b[2 * k + 1];
-      if (std::abs(d[k]) < 1e-12) {
-        if (o[k] < lo || o[k] > hi) hit = false;
-        continue;
-      }
-      double t0 = (lo - o[k]) / d[k], t1 = (hi - o[k]) / d[k];
-      if (t0 > t1) std::swap(t0, t1);
-      tmin = std::max(tmin, t0);
-      tmax = std::min(tmax, t1);
-      if (tmin > tmax) hit = false;
-    }
-    if (hit && tmin > 0 && tmin < best) best = tmin;
-  }
-  return best;
+  sim::Ray ray;
+  ray.d = Eigen::Vector3d(dx, dy, dz);
+  sim::Hit hit;
+  return Room().Intersect(ray, &hit) ? hit.t : std::numeric_limits<double>::infinity();
 }
 
 }  // namespace

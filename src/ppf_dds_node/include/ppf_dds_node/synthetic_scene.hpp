@@ -1,6 +1,8 @@
-// A static synthetic box room seen by a spinning multi-beam LiDAR, plus a resting IMU: enough for
-// the core to initialize and register, without any other package. Used by ppf_latency_bench
-// (HDL-64-sized clouds) where only the node's own overhead is of interest.
+// A static box room seen by a spinning multi-beam LiDAR, plus a resting IMU: enough for the core
+// to initialize and register, in the driver message types the node's tests and ppf_latency_bench
+// publish (HDL-64-sized clouds, where only the node's own overhead is of interest). The room is
+// made of the simulator's scene primitives and cast with its scene (ppf_sim_gen); what is here
+// is the beam pattern and the message packing.
 #pragma once
 
 #include <cstdint>

@@ -39,12 +39,23 @@
 #
 # Every finding stops the test that made it (halt_on_error), so it fails. Results are left in
 # build-<kind>/*/Testing for scripts/test_summary.py. Environment: PPF_BUILD_JOBS (default 2).
+# A second argument, build or test, runs only that half (default: both): scripts/test.sh builds
+# both kinds beside the Release node tests, which leave most of the 2 cores idle.
 set -uo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 SAN="$ROOT/scripts/sanitizers"
 kind="${1:-}"
+phase="${2:-all}"
+case "$phase" in
+  all | build | test) ;;
+  *)
+    echo "usage: $0 asan|tsan [build|test]" >&2
+    exit 2
+    ;;
+esac
+want() { [ "$phase" = all ] || [ "$phase" = "$1" ]; }
 jobs="${PPF_BUILD_JOBS:-2}"
 
 log() { printf '\033[1m[sanitize %s]\033[0m %s\n' "$kind" "$*"; }
@@ -83,7 +94,7 @@ run_tests() {  # run_tests <build-base> <install-base> <packages...>
 
 mkdir -p log
 rm -rf "build-$kind"/*/Testing  # a failed build must not leave an earlier run's results to count
-: >"log/sanitize_${kind}_test.log"
+want test && : >"log/sanitize_${kind}_test.log"
 case "$kind" in
   asan)
     # halt_on_error: the first report ends the process (ASan does by default; UBSan only with
@@ -91,8 +102,12 @@ case "$kind" in
     export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:strict_string_checks=1:check_initialization_order=1:detect_stack_use_after_return=1"
     export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1:suppressions=$SAN/ubsan.supp"
     export LSAN_OPTIONS="suppressions=$SAN/lsan.supp:print_suppressions=0"
-    build build-asan install-asan "$SAN/asan.cmake" --packages-up-to ppf_fuzz ppf_sim ppf_dds_node ||
-      exit 1
+    if want build; then
+      build build-asan install-asan "$SAN/asan.cmake" --packages-up-to ppf_fuzz ppf_sim ppf_dds_node ||
+        exit 1
+    fi
+    want test || exit 0
+    [ -f install-asan/setup.bash ] || { echo "asan: nothing built (scripts/sanitize.sh asan build)" >&2; exit 1; }
     source_setup install-asan/setup.bash
     # Two tests at a time: these packages' tests are single-threaded computations on synthetic
     # data with no clock in their checks (the core's end-to-end runs use one thread), so the
@@ -125,8 +140,13 @@ case "$kind" in
     # (ScoreFit, the LiDAR-only hypothesis scoring every node now runs at start-up). The OpenMP
     # runtime is not TSan's target here (tsan.supp, libomp): no tool.
     export OMP_TOOL=disabled
-    build build-tsan install-tsan "$SAN/tsan.cmake" --packages-select ppf_dds_node || exit 1
-    clang -O1 -shared -fPIC -o build-tsan/libppf_tsan_clocklock_shim.so "$SAN/tsan_clocklock_shim.c" || exit 1
+    if want build; then
+      build build-tsan install-tsan "$SAN/tsan.cmake" --packages-select ppf_dds_node || exit 1
+      clang -O1 -shared -fPIC -o build-tsan/libppf_tsan_clocklock_shim.so "$SAN/tsan_clocklock_shim.c" ||
+        exit 1
+    fi
+    want test || exit 0
+    [ -f install-tsan/setup.bash ] || { echo "tsan: nothing built (scripts/sanitize.sh tsan build)" >&2; exit 1; }
     export LD_PRELOAD="$ROOT/build-tsan/libppf_tsan_clocklock_shim.so"
     source_setup install-tsan/setup.bash
     # test_multihost is left to the Release run: under TSan the node's listener is several times
@@ -136,7 +156,7 @@ case "$kind" in
     run_tests build-tsan install-tsan ppf_dds_node --ctest-args -E MultiHost
     ;;
   *)
-    echo "usage: $0 asan|tsan" >&2
+    echo "usage: $0 asan|tsan [build|test]" >&2
     exit 2
     ;;
 esac

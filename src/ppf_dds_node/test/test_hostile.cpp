@@ -119,13 +119,14 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   // later line carried; it is not an event of its own.
   const int unknown_lines = CountLinesWith(log, "has unknown datatype 42") -
                             CountLinesWith(log, "similar since the last line) last: ");
-  // How many lines pass depends on how fast the burst arrives (0.05 s interval here): under
-  // ThreadSanitizer the node takes it in slower (15 lines seen; 27 in a fresh-clone CI run while
-  // another build ran beside it), so the bounds are wider there. The sum below still accounts
-  // for every one of the 32.
+  // How many lines pass depends on how fast the burst arrives (0.05 s interval here): an
+  // instrumented node takes it in slower (TSan: 15 lines seen, 27 in a fresh-clone CI run while
+  // another build ran beside it; ASan: 11 in a CI run), so the bounds are wider there. The sum
+  // below still accounts for every one of the 32.
+  constexpr bool kInstrumented = kUnderTsan || ppf::test::kUnderAsan;
   EXPECT_GE(unknown_lines, 2);
-  EXPECT_LE(unknown_lines, kUnderTsan ? 30 : 10);
-  EXPECT_GE(SuppressedIn(log, bad), kUnderTsan ? 2 : 8) << "the burst was not rate limited";
+  EXPECT_LE(unknown_lines, kInstrumented ? 30 : 10);
+  EXPECT_GE(SuppressedIn(log, bad), kInstrumented ? 2 : 8) << "the burst was not rate limited";
   EXPECT_EQ(unknown_lines + SuppressedIn(log, bad), 32);
   EXPECT_EQ(SummaryField(s, "scans_malformed"), 8 + 32);
 

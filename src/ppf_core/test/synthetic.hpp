@@ -1,4 +1,4 @@
-// Synthetic data for the core's tests: a box room with pillars, an analytic trajectory with IMU
+// Synthetic data for the core's tests: a box room with pillars (cast with ppf_sim's scene), an analytic trajectory with IMU
 // samples from exact (or finite-difference) derivatives, a spinning multi-beam LiDAR with
 // per-point time, and a CloudView encoder for every time-field convention.
 #pragma once
@@ -8,6 +8,7 @@
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -19,6 +20,7 @@
 #include "ppf_core/imu_propagation.hpp"
 #include "ppf_core/imu_sample.hpp"
 #include "ppf_core/so3.hpp"
+#include "ppf_sim/scene.hpp"
 
 namespace ppf::test {
 
@@ -31,33 +33,52 @@ struct Box {
   bool room = false;
 };
 
+// Boxes cast with the simulator's scene (ppf_sim_gen), the one ray caster of the project: a room
+// becomes six wall quads that overlap by 1 cm at the edges (a ray into a corner hits one), an
+// obstacle a box. Built on the first cast after `boxes` changed; tests cast from one thread.
 struct Scene {
   std::vector<Box> boxes;
 
   // Distance along unit `d` from `o` to the first surface, or +inf.
   double Raycast(const Eigen::Vector3d& o, const Eigen::Vector3d& d) const {
-    double best = std::numeric_limits<double>::infinity();
-    for (const Box& b : boxes) {
-      double t_enter = -std::numeric_limits<double>::infinity();
-      double t_exit = std::numeric_limits<double>::infinity();
-      for (int a = 0; a < 3; ++a) {
-        if (std::abs(d[a]) < 1e-12) {
-          if (o[a] < b.lo[a] || o[a] > b.hi[a]) {
-            t_enter = std::numeric_limits<double>::infinity();
-          }
-          continue;
-        }
-        double t0 = (b.lo[a] - o[a]) / d[a], t1 = (b.hi[a] - o[a]) / d[a];
-        if (t0 > t1) std::swap(t0, t1);
-        t_enter = std::max(t_enter, t0);
-        t_exit = std::min(t_exit, t1);
-      }
-      if (t_enter > t_exit) continue;
-      const double t = b.room ? t_exit : t_enter;
-      if (t > 1e-6 && t < best) best = t;
-    }
-    return best;
+    if (!built_ || built_boxes_ != boxes.size()) Build();
+    sim::Ray ray;
+    ray.o = o;
+    ray.d = d;
+    ray.tmin = 1e-6;
+    sim::Hit hit;
+    return built_->Intersect(ray, &hit) ? hit.t : std::numeric_limits<double>::infinity();
   }
+
+ private:
+  void Build() const {
+    auto s = std::make_shared<sim::Scene>();
+    const Eigen::Vector3d X = Eigen::Vector3d::UnitX(), Y = Eigen::Vector3d::UnitY(),
+                          Z = Eigen::Vector3d::UnitZ();
+    for (const Box& b : boxes) {
+      const Eigen::Vector3d c = 0.5 * (b.lo + b.hi), h = 0.5 * (b.hi - b.lo);
+      if (!b.room) {
+        s->Add(sim::MakeBox(c.x(), c.y(), 0.0, h.x(), h.y(), b.lo.z(), b.hi.z(), 0.3f));
+        continue;
+      }
+      const Eigen::Vector3d e = h + Eigen::Vector3d::Constant(0.01);
+      for (const double x : {b.lo.x(), b.hi.x()}) {
+        s->Add(sim::MakeQuad({x, c.y(), c.z()}, Y, e.y(), Z, e.z(), 0.3f));
+      }
+      for (const double y : {b.lo.y(), b.hi.y()}) {
+        s->Add(sim::MakeQuad({c.x(), y, c.z()}, X, e.x(), Z, e.z(), 0.3f));
+      }
+      for (const double z : {b.lo.z(), b.hi.z()}) {
+        s->Add(sim::MakeQuad({c.x(), c.y(), z}, X, e.x(), Y, e.y(), 0.3f));
+      }
+    }
+    s->Build();
+    built_ = s;
+    built_boxes_ = boxes.size();
+  }
+
+  mutable std::shared_ptr<const sim::Scene> built_;
+  mutable size_t built_boxes_ = 0;
 };
 
 inline Scene MakeRoomScene() {

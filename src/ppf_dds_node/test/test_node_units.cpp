@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -14,6 +16,7 @@
 #include "ppf_dds_node/logging.hpp"
 #include "ppf_dds_node/node_config.hpp"
 #include "ppf_dds_node/stall_watch.hpp"
+#include "ppf_dds_node/synthetic_scene.hpp"
 #include "ppf_dds_node/time_ordered_queue.hpp"
 #include "ppf_msgs_cdr/cdr.hpp"
 #include "ppf_msgs_cdr/cdr_payload.hpp"
@@ -433,4 +436,37 @@ TEST(TestDomain, ADomainClaimedElsewhereIsSkippedAndASaltKeepsItsDomain) {
   EXPECT_EQ(ppf::test::TestDomainId(salt), domain);
   EXPECT_NE(ppf::test::TestDomainId(salt + 1), domain);
   ::close(fd);
+}
+
+// The room test_node feeds (synthetic_scene.cpp): each beam hits a wall, the floor, the ceiling or a pillar
+// (corner rays too: the simulator's walls overlap at the edges), nothing beyond the room's box
+// (x -15..9, y -8..6, z -1.8..2.7 m from the sensor), and the pillar at x 3..4, y 1.5..2.5 m
+// shadows the wall behind it.
+TEST(SyntheticRoom, EveryBeamHitsTheRoomAndThePillarCastsAShadow) {
+  ppf::dds::SyntheticLidar lidar;
+  lidar.rings = 16;
+  lidar.columns = 720;
+  const sensor_msgs::msg::PointCloud2 m = ppf::dds::MakeRoomScan(lidar, 1000);
+  ASSERT_EQ(m.width(), 16u * 720u);
+  ASSERT_EQ(m.point_step(), 24u);
+  int in_pillar_direction = 0, on_pillar = 0;
+  for (uint32_t i = 0; i < m.width(); ++i) {
+    float p[3];
+    std::memcpy(p, m.data().data() + static_cast<size_t>(i) * 24, sizeof(p));
+    ASSERT_TRUE(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])) << i;
+    EXPECT_GE(p[0], -15.001f);
+    EXPECT_LE(p[0], 9.001f);
+    EXPECT_GE(p[1], -8.001f);
+    EXPECT_LE(p[1], 6.001f);
+    EXPECT_GE(p[2], -1.801f);
+    EXPECT_LE(p[2], 2.701f);
+    // Beams towards the pillar's centre (3.5, 2.0) within a degree, below the ceiling's reach.
+    const double az = std::atan2(p[1], p[0]), az_pillar = std::atan2(2.0, 3.5);
+    if (std::abs(az - az_pillar) < M_PI / 180.0 && std::abs(p[2]) < 1.0) {
+      ++in_pillar_direction;
+      on_pillar += std::hypot(p[0], p[1]) < 4.5;
+    }
+  }
+  EXPECT_GT(in_pillar_direction, 0);
+  EXPECT_EQ(on_pillar, in_pillar_direction);
 }

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "ppf_bridge/convert.hpp"
-#include "ppf_core/time_field.hpp"
+#include "ppf_core/lio/time_field.hpp"
 #include "ppf_msgs_cdr/cdr.hpp"
 
 namespace {

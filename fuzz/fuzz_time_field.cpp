@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "ppf_core/time_field.hpp"
+#include "ppf_core/lio/time_field.hpp"
 
 namespace {
 

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "ppf_core/time_field.hpp"
+#include "ppf_core/lio/time_field.hpp"
 #include "ppf_msgs_cdr/time.hpp"
 
 namespace ppf::bridge {

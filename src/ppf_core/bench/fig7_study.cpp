@@ -38,10 +38,10 @@
 #include <omp.h>
 #endif
 
-#include "ppf_core/ipca.hpp"
-#include "ppf_core/plane_prefitter.hpp"
-#include "ppf_core/skeleton_residual.hpp"
-#include "ppf_core/voxel_map.hpp"
+#include "ppf_core/ppf/ipca.hpp"
+#include "ppf_core/ppf/plane_prefitter.hpp"
+#include "ppf_core/ppf/skeleton_residual.hpp"
+#include "ppf_core/lio/voxel_map.hpp"
 
 namespace {
 

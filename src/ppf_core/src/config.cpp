@@ -4,7 +4,7 @@
 #include <sstream>
 
 #include "ppf_core/config_table.hpp"
-#include "ppf_core/so3.hpp"
+#include "ppf_core/lio/so3.hpp"
 
 namespace ppf {
 namespace {

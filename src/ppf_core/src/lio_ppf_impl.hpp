@@ -21,12 +21,12 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "ppf_core/hypothesis_search.hpp"
+#include "ppf_core/lio/hypothesis_search.hpp"
 #include "ppf_core/lio_ppf.hpp"
-#include "ppf_core/motion_model.hpp"
-#include "ppf_core/moving_start.hpp"
-#include "ppf_core/preprocess.hpp"
-#include "ppf_core/skeleton_tracker.hpp"
+#include "ppf_core/lio/motion_model.hpp"
+#include "ppf_core/lio/moving_start.hpp"
+#include "ppf_core/lio/preprocess.hpp"
+#include "ppf_core/ppf/skeleton_tracker.hpp"
 
 namespace ppf {
 

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "lio_ppf_impl.hpp"
-#include "ppf_core/deskew.hpp"
-#include "ppf_core/so3.hpp"
+#include "ppf_core/lio/deskew.hpp"
+#include "ppf_core/lio/so3.hpp"
 
 namespace ppf {
 

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "lio_ppf_impl.hpp"
-#include "ppf_core/deskew.hpp"
+#include "ppf_core/lio/deskew.hpp"
 
 namespace ppf {
 

@@ -8,7 +8,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "ppf_core/plane.hpp"
+#include "ppf_core/ppf/plane.hpp"
 
 namespace ppf::test {
 

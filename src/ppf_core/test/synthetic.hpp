@@ -17,9 +17,9 @@
 #include <Eigen/Geometry>
 
 #include "ppf_core/cloud_view.hpp"
-#include "ppf_core/imu_propagation.hpp"
+#include "ppf_core/lio/imu_propagation.hpp"
 #include "ppf_core/imu_sample.hpp"
-#include "ppf_core/so3.hpp"
+#include "ppf_core/lio/so3.hpp"
 #include "ppf_sim/scene.hpp"
 
 namespace ppf::test {

@@ -3,8 +3,8 @@
 
 #include <cmath>
 
-#include "ppf_core/deskew.hpp"
-#include "ppf_core/imu_propagation.hpp"
+#include "ppf_core/lio/deskew.hpp"
+#include "ppf_core/lio/imu_propagation.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

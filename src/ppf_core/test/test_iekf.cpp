@@ -6,10 +6,10 @@
 #include <cmath>
 #include <random>
 
-#include "ppf_core/iekf.hpp"
-#include "ppf_core/knn_residual.hpp"
-#include "ppf_core/so3.hpp"
-#include "ppf_core/voxel_map.hpp"
+#include "ppf_core/lio/iekf.hpp"
+#include "ppf_core/lio/knn_residual.hpp"
+#include "ppf_core/lio/so3.hpp"
+#include "ppf_core/lio/voxel_map.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "ppf_core/imu_init.hpp"
+#include "ppf_core/lio/imu_init.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

@@ -5,8 +5,8 @@
 
 #include <Eigen/Eigenvalues>
 
-#include "ppf_core/imu_propagation.hpp"
-#include "ppf_core/so3.hpp"
+#include "ppf_core/lio/imu_propagation.hpp"
+#include "ppf_core/lio/so3.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

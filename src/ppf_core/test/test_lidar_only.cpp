@@ -6,10 +6,10 @@
 #include <cmath>
 #include <random>
 
-#include "ppf_core/hypothesis_search.hpp"
-#include "ppf_core/motion_model.hpp"
-#include "ppf_core/so3.hpp"
-#include "ppf_core/voxel_map.hpp"
+#include "ppf_core/lio/hypothesis_search.hpp"
+#include "ppf_core/lio/motion_model.hpp"
+#include "ppf_core/lio/so3.hpp"
+#include "ppf_core/lio/voxel_map.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

@@ -4,8 +4,8 @@
 
 #include <random>
 
-#include "ppf_core/moving_start.hpp"
-#include "ppf_core/so3.hpp"
+#include "ppf_core/lio/moving_start.hpp"
+#include "ppf_core/lio/so3.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

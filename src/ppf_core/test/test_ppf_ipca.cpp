@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-#include "ppf_core/ipca.hpp"
+#include "ppf_core/ppf/ipca.hpp"
 #include "ppf_test_scenes.hpp"
 
 namespace ppf {

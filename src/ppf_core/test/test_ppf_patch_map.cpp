@@ -6,11 +6,11 @@
 
 #include <gtest/gtest.h>
 
-#include "ppf_core/plane_patch_map.hpp"
-#include "ppf_core/plane_prefitter.hpp"
-#include "ppf_core/residual_provider.hpp"
-#include "ppf_core/skeleton_residual.hpp"
-#include "ppf_core/skeleton_window.hpp"
+#include "ppf_core/ppf/plane_patch_map.hpp"
+#include "ppf_core/ppf/plane_prefitter.hpp"
+#include "ppf_core/lio/residual_provider.hpp"
+#include "ppf_core/ppf/skeleton_residual.hpp"
+#include "ppf_core/ppf/skeleton_window.hpp"
 
 namespace ppf {
 namespace {

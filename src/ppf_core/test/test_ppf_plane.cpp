@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "ppf_core/plane.hpp"
+#include "ppf_core/ppf/plane.hpp"
 
 namespace ppf {
 namespace {

@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "ppf_core/plane_prefitter.hpp"
+#include "ppf_core/ppf/plane_prefitter.hpp"
 #include "ppf_test_scenes.hpp"
 
 namespace ppf {

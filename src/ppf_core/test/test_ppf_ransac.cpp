@@ -6,7 +6,7 @@
 #include <omp.h>
 #endif
 
-#include "ppf_core/ransac.hpp"
+#include "ppf_core/ppf/ransac.hpp"
 #include "ppf_test_scenes.hpp"
 
 namespace ppf {

@@ -3,8 +3,8 @@
 
 #include <gtest/gtest.h>
 
-#include "ppf_core/skeleton_residual.hpp"
-#include "ppf_core/skeleton_window.hpp"
+#include "ppf_core/ppf/skeleton_residual.hpp"
+#include "ppf_core/ppf/skeleton_window.hpp"
 
 namespace ppf {
 namespace {

@@ -5,9 +5,9 @@
 
 #include <gtest/gtest.h>
 
-#include "ppf_core/plane_prefitter.hpp"
-#include "ppf_core/sandwich_layer.hpp"
-#include "ppf_core/skeleton_residual.hpp"
+#include "ppf_core/ppf/plane_prefitter.hpp"
+#include "ppf_core/ppf/sandwich_layer.hpp"
+#include "ppf_core/ppf/skeleton_residual.hpp"
 #include "ppf_test_scenes.hpp"
 
 namespace ppf {

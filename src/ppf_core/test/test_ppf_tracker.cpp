@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-#include "ppf_core/skeleton_tracker.hpp"
+#include "ppf_core/ppf/skeleton_tracker.hpp"
 #include "ppf_test_scenes.hpp"
 
 namespace ppf {

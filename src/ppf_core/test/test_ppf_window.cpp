@@ -6,8 +6,8 @@
 
 #include <Eigen/Eigenvalues>
 
-#include "ppf_core/plane_prefitter.hpp"
-#include "ppf_core/skeleton_window.hpp"
+#include "ppf_core/ppf/plane_prefitter.hpp"
+#include "ppf_core/ppf/skeleton_window.hpp"
 #include "ppf_test_scenes.hpp"
 
 namespace ppf {

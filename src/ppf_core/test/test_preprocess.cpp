@@ -9,10 +9,10 @@
 #include <set>
 #include <tuple>
 
-#include "ppf_core/deskew.hpp"
-#include "ppf_core/imu_propagation.hpp"
-#include "ppf_core/preprocess.hpp"
-#include "ppf_core/voxel_map.hpp"
+#include "ppf_core/lio/deskew.hpp"
+#include "ppf_core/lio/imu_propagation.hpp"
+#include "ppf_core/lio/preprocess.hpp"
+#include "ppf_core/lio/voxel_map.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

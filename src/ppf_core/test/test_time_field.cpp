@@ -6,7 +6,7 @@
 #include <limits>
 #include <random>
 
-#include "ppf_core/time_field.hpp"
+#include "ppf_core/lio/time_field.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

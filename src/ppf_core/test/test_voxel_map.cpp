@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <random>
 
-#include "ppf_core/voxel_map.hpp"
+#include "ppf_core/lio/voxel_map.hpp"
 
 namespace ppf {
 namespace {

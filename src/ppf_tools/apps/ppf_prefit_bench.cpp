@@ -30,10 +30,10 @@
 #include <omp.h>
 #endif
 
-#include "ppf_core/plane_prefitter.hpp"
+#include "ppf_core/ppf/plane_prefitter.hpp"
 #include "ppf_core/ppf_config.hpp"
-#include "ppf_core/skeleton_window.hpp"
-#include "ppf_core/voxel_map.hpp"
+#include "ppf_core/ppf/skeleton_window.hpp"
+#include "ppf_core/lio/voxel_map.hpp"
 #include "ppf_sim/lidar_model.hpp"
 #include "ppf_sim/scan_generator.hpp"
 #include "ppf_sim/world.hpp"

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "ppf_core/skeleton_window.hpp"
+#include "ppf_core/ppf/skeleton_window.hpp"
 #include "ppf_msgs/msg/SkeletonPlaneArray.h"
 
 namespace ppf::bridge {

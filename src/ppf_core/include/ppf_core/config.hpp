@@ -18,15 +18,15 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "ppf_core/hypothesis_search.hpp"
-#include "ppf_core/iekf.hpp"
-#include "ppf_core/imu_init.hpp"
-#include "ppf_core/imu_propagation.hpp"
-#include "ppf_core/knn_residual.hpp"
+#include "ppf_core/lio/hypothesis_search.hpp"
+#include "ppf_core/lio/iekf.hpp"
+#include "ppf_core/lio/imu_init.hpp"
+#include "ppf_core/lio/imu_propagation.hpp"
+#include "ppf_core/lio/knn_residual.hpp"
 #include "ppf_core/log.hpp"
 #include "ppf_core/ppf_config.hpp"
-#include "ppf_core/time_field.hpp"
-#include "ppf_core/voxel_map.hpp"
+#include "ppf_core/lio/time_field.hpp"
+#include "ppf_core/lio/voxel_map.hpp"
 
 namespace ppf {
 

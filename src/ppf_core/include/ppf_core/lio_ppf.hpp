@@ -98,17 +98,17 @@
 
 #include "ppf_core/cloud_view.hpp"
 #include "ppf_core/config.hpp"
-#include "ppf_core/iekf.hpp"
-#include "ppf_core/imu_init.hpp"
-#include "ppf_core/imu_propagation.hpp"
+#include "ppf_core/lio/iekf.hpp"
+#include "ppf_core/lio/imu_init.hpp"
+#include "ppf_core/lio/imu_propagation.hpp"
 #include "ppf_core/imu_sample.hpp"
-#include "ppf_core/knn_residual.hpp"
+#include "ppf_core/lio/knn_residual.hpp"
 #include "ppf_core/log.hpp"
 #include "ppf_core/ppf_config.hpp"
-#include "ppf_core/residual_provider.hpp"
-#include "ppf_core/skeleton_window.hpp"
-#include "ppf_core/time_field.hpp"
-#include "ppf_core/voxel_map.hpp"
+#include "ppf_core/lio/residual_provider.hpp"
+#include "ppf_core/ppf/skeleton_window.hpp"
+#include "ppf_core/lio/time_field.hpp"
+#include "ppf_core/lio/voxel_map.hpp"
 
 namespace ppf {
 

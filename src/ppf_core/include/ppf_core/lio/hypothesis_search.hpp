@@ -1,0 +1,99 @@
+// Registration from several initial guesses: the LiDAR-only mode's answer to a poor prediction.
+//
+// Without an IMU the prediction is the constant-velocity model (motion_model.hpp). A hand-held
+// sensor at 2 Hz keyframes turns a median 7.7 deg between scans, and its turn rate changes up to
+// 34 deg from one interval to the next (balm_realworld_lidar), so the guess can be tens of
+// degrees off; the kNN registration only reaches about one voxel neighbourhood (1 m at the 0.5 m
+// map), i.e. a few degrees at the ranges that dominate a scan. So each guess is first aligned
+// coarsely (a sample of the scan, a wide residual gate, more iterations, no refined gate), its
+// converged fit scored (the share of sample points with a map plane within fit_gate), and the
+// best becomes the prediction of the normal update (and of the skeleton tracker's incremental
+// plane guesses). The constant-velocity guess comes first and is kept at once when it fits
+// well: the others cost time only where the model failed.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "ppf_core/lio/iekf.hpp"
+#include "ppf_core/lio/knn_residual.hpp"
+#include "ppf_core/lio/residual_provider.hpp"
+
+namespace ppf {
+
+struct LidarOnlyOptions {
+  // Fit (ScoreFit: share of the sample points near the map that lie within fit_gate of its
+  // planes, after the coarse alignment) at which a guess is kept without trying further ones.
+  double good_fit = 0.8;
+  // ... or at least this share of the median fit of the last 10 scans, if that is lower: in kPpf
+  // a right pose fits less (0.74 median on balm_realworld_lidar, kNN 0.95: covered skeleton
+  // points meet the sparse scattered map at plane borders), and an absolute bar made it try every
+  // guess on almost every scan (149 of 177, 140 ms a scan instead of 26).
+  double good_fit_relative = 0.95;
+  // Best fit below this: the scan is registered anyway, but reported Status::kDegenerate with
+  // the fit in the reason (the pose may be off).
+  double min_fit = 0.5;
+  double fit_gate = 0.1;             // m
+  int coarse_iterations = 10;        // iterations of each guess's coarse alignment
+  double coarse_max_residual = 1.0;  // m; residual gate of the coarse alignment
+  int coarse_points = 2000;          // sample of the downsampled scan used by the coarse stage
+  // Extra guesses when the constant-velocity one fits badly: the model's rotation turned about
+  // the LiDAR's axes by these angles (the turn rate changed), besides "no motion" and the
+  // model's rotation halved and 1.5-fold.
+  double offset_deg = 15.0;  // turns of +-offset and +-2*offset about z, +-offset about x, y
+  // Prior of the fine update about the coarse pose (1 sigma).
+  double prior_rot_std = 0.05;  // rad
+  double prior_pos_std = 0.1;   // m
+  // De-skew again after the coarse alignment, with the motion interpolated between the last
+  // registered pose and the aligned one, then update again (kNN, from that pose): this many
+  // times at most (0 = off), fewer once the pose moves less than redeskew_min_change.
+  // The constant-velocity de-skew extrapolates the previous interval's twist; a hand-held turn
+  // rate changes by tens of deg/s within one scan interval, a de-skew error of degrees. Off by
+  // default: on car-like motion, which the model already de-skews well, the extra updates made
+  // the poses noisier (README, LiDAR-only); 2 for a hand-held sensor.
+  int redeskew_iterations = 0;
+  double redeskew_min_change = 0.002;  // rad and m
+};
+
+struct MotionHypothesis {
+  std::string name;
+  Eigen::Isometry3d T_world_lidar = Eigen::Isometry3d::Identity();
+};
+
+struct CoarseAlignment {
+  // The best guess after its coarse alignment, the guess's name, its fit (ScoreFit) and how
+  // many guesses were aligned.
+  Eigen::Isometry3d T_world_lidar = Eigen::Isometry3d::Identity();
+  std::string name;
+  double fit = 0.0;
+  int tried = 0;
+};
+
+// Aligns the hypotheses in order until one reaches good_fit; returns the one with the most
+// inliers (ScoreFit) among those aligned. `frame` holds the scan and the map (its labels are
+// ignored: every point takes part). Empty hypotheses or an empty frame: fit 0, the first
+// hypothesis (or identity) unchanged.
+CoarseAlignment AlignHypotheses(const ScanFrame& frame,
+                                const std::vector<MotionHypothesis>& hypotheses,
+                                const LidarOnlyOptions& options, const IekfOptions& iekf,
+                                const KnnOptions& knn);
+
+// How well a pose puts the frame's points (all labels) on the map. covered: points with k map
+// neighbours within knn.max_neighbor_distance; inliers: of those, points within fit_gate of the
+// plane their neighbours span. fit = inliers / covered (0 if under 5 % of the points are
+// covered). Over covered points, not all: in kPpf the kNN map holds only the scattered points,
+// so a scan's planar surfaces find nothing there even at the right pose, and a share of all
+// points would sink as the map ages (measured on balm_realworld_lidar: 0.74 -> 0.28 over 80 scans
+// at a right pose, while kNN's stayed at 0.94).
+struct FitScore {
+  size_t inliers = 0;
+  size_t covered = 0;
+  double fit = 0.0;
+};
+FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+                  const LidarOnlyOptions& options, const KnnOptions& knn);
+
+}  // namespace ppf

@@ -1,0 +1,65 @@
+// kNN point-to-plane residuals against the voxel map (the Faster-LIO style registration).
+// For every kScattered point: k nearest map points; least-squares plane through them (PCA);
+// accepted only if all k lie within plane_threshold of the plane (a flat patch); then the row
+// r = n . (T_world_lidar p) + d, gated by |r| < max_residual. OpenMP-parallel over points.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "ppf_core/lio/residual_provider.hpp"
+#include "ppf_core/lio/voxel_map.hpp"
+
+namespace ppf {
+
+struct KnnOptions {
+  int k = 5;                          // neighbours per point
+  double max_neighbor_distance = 1.0; // metres; farther neighbours do not count
+  double plane_threshold = 0.1;       // metres; every neighbour within this of the fitted plane
+  // Metres; if > 0, neighbours must also spread at least this much (std) across their main
+  // direction. Neighbours along one scan ring are nearly collinear and their plane normal is
+  // poorly defined. Off by default: with 0.5 m voxels it also removes most floor rows of a
+  // 16-beam LiDAR (z then rests on the IMU alone); it pays off with finer voxels (0.25 m).
+  double min_plane_spread = 0.0;
+  // Metres; larger residuals are outliers. Wide enough for the prediction's error; the IEKF's
+  // refined gate (IekfOptions::refined_gate) narrows it once the estimate is near.
+  double max_residual = 0.5;
+  int num_threads = 0;                // 0 = OpenMP default
+};
+
+// Least-squares plane n.x + d = 0 through `pts` (>= 3). Returns false if the points do not span a
+// plane (std across their main direction below min_spread) or if a point is farther than
+// `threshold` from the plane.
+bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double threshold, Eigen::Vector3d* n,
+              double* d, double min_spread = 0.0);
+
+class KnnResidualProvider : public ResidualProvider {
+ public:
+  explicit KnnResidualProvider(const KnnOptions& options = KnnOptions()) : options_(options) {}
+  std::string Name() const override { return "knn"; }
+  void BeginScan(const ScanFrame& frame) override;
+  void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
+                   std::vector<PointPlaneRow>* rows) override;
+
+ private:
+  KnnOptions options_;
+  const ScanFrame* frame_ = nullptr;
+  std::vector<size_t> indices_;  // kScattered points of the frame
+  // Per-call buffers kept between the iterations and scans: one slot per indexed point.
+  std::vector<PointPlaneRow> tmp_;
+  std::vector<char> ok_;
+  // The last plane fitted for each indexed point and the neighbours it was fitted to. Between the
+  // filter's iterations the pose moves little and most points find the same k neighbours: the
+  // same input gives the same plane, so the fit is reused instead of solved again.
+  static constexpr size_t kMaxCachedK = 8;
+  struct CachedFit {
+    Eigen::Vector3f nn[kMaxCachedK];
+    size_t count = 0;  // 0: nothing cached
+    bool ok = false;
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+    double d = 0.0;
+  };
+  std::vector<CachedFit> fits_;
+};
+
+}  // namespace ppf

@@ -1,0 +1,99 @@
+// Skeleton residuals (paper Eq. 10): each skeleton point (Omega) is matched to the nearest plane
+// of the world-frame window F, and only if that distance is below the gate eps. There is no kNN
+// search: the search space is <= window_size planes instead of the local point map.
+//
+// With a PlanePatchMap (plane_patch_map.hpp, SetPatchMap) a skeleton point whose world cell holds
+// a patch of its own surface is matched to that patch instead (map-anchored; see that header for
+// the measured reason); the window planes remain the fallback.
+//
+// Matches are recomputed from scratch at every call (every IEKF iteration): no per-point
+// "selected" flag survives between iterations, unlike the reference code where a stale flag kept
+// matches from an earlier linearisation point.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "ppf_core/ppf/plane.hpp"
+#include "ppf_core/ppf/plane_patch_map.hpp"
+#include "ppf_core/lio/residual_provider.hpp"
+
+namespace ppf {
+
+class SkeletonWindow;
+struct PrefitResult;
+
+struct SkeletonMatch {
+  int point_index = -1;          // index into the scan's points
+  int plane_index = -1;          // index into the window planes passed in; -1 = a map patch
+  double signed_distance = 0.0;  // n . (T_world_lidar p) + d, |.| < eps
+  Plane plane;                   // the matched plane, world frame
+};
+
+// Eq. 10 for the points `skeleton_indices` of `points_lidar` at pose T_world_lidar. Appends one
+// match per gated point to *matches (cleared first), in ascending point order.
+void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
+                            const std::vector<int>& skeleton_indices,
+                            const Eigen::Isometry3d& T_world_lidar,
+                            const std::vector<Plane>& window_world, double eps,
+                            std::vector<SkeletonMatch>* matches);
+
+// The same with a normal-consistency gate: `own_normals_lidar[i]` is the normal of the plane the
+// pre-fitter assigned skeleton_indices[i] to (scan frame); a window plane is a candidate only if
+// the angle between the normals is below normal_gate_deg (<= 0: no gate). Why: a point of a
+// plane that is new in this scan (not in the window yet) lying within eps of another window plane
+// (a wall's foot near the floor) would otherwise be matched to that plane.
+void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
+                            const std::vector<int>& skeleton_indices,
+                            const std::vector<Eigen::Vector3d>& own_normals_lidar,
+                            double normal_gate_deg, const Eigen::Isometry3d& T_world_lidar,
+                            const std::vector<Plane>& window_world, double eps,
+                            std::vector<SkeletonMatch>* matches);
+
+// Residual rows of the skeleton points of a ScanFrame (labels == kSkeleton) against a window.
+// The window is read at BeginScan (F from the previous scan, as in the reference pipeline; this
+// scan's planes enter the window only after the update, see PpfScanSplitter).
+class SkeletonResidualProvider : public ResidualProvider {
+ public:
+  SkeletonResidualProvider(const SkeletonWindow* window, double eps);
+
+  // Enables the normal-consistency gate (see above) using the pre-fit of the current scan, which
+  // must be complete before BeginScan (SkeletonTracker does this). normal_gate_deg <= 0: off.
+  void SetPrefitSource(const PrefitResult* prefit, double normal_gate_deg);
+  // Map-anchored matches (needs the pre-fit source for each point's own normal); nullptr = off.
+  // window_fallback: points whose cell has no patch of their surface yet are matched to the
+  // window (true) or give no residual (false).
+  void SetPatchMap(const PlanePatchMap* patches, bool window_fallback) {
+    patches_ = patches;
+    window_fallback_ = window_fallback;
+  }
+  // OpenMP threads for the matching loop (PpfConfig::num_threads); 0 = the OpenMP default.
+  void SetNumThreads(int num_threads) { num_threads_ = num_threads; }
+  std::string Name() const override { return "skeleton"; }
+  void BeginScan(const ScanFrame& frame) override;
+  void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
+                   std::vector<PointPlaneRow>* rows) override;
+  void Reset() override;
+
+  // Matches of the last ComputeRows call (diagnostics and tests).
+  const std::vector<SkeletonMatch>& last_matches() const { return matches_; }
+
+ private:
+  const SkeletonWindow* window_;
+  double eps_;
+  const ScanFrame* frame_ = nullptr;
+  std::vector<Plane> planes_world_;
+  std::vector<int> skeleton_indices_;
+  std::vector<SkeletonMatch> matches_;
+  const PrefitResult* prefit_ = nullptr;
+  double normal_gate_deg_ = 0.0;
+  const PlanePatchMap* patches_ = nullptr;
+  bool window_fallback_ = true;
+  std::vector<Eigen::Vector3d> own_normals_;  // per skeleton_indices_ entry, scan frame
+  int num_threads_ = 0;
+};
+
+}  // namespace ppf

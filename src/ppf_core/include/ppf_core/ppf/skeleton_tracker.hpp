@@ -1,0 +1,61 @@
+// Skeleton tracking (paper Sec. IV-B, Fig. 2): plane pre-fitting wired into the LIO pipeline.
+//
+// Per scan, through the hooks of residual_provider.hpp:
+//   Split   (before the update)  window planes -> guesses at the IMU-predicted pose; pre-fit the
+//                                scan; label Omega kSkeleton, semi-inliers kDiscarded, Theta
+//                                kScattered (only those enter the kNN map).
+//   rows    (every IEKF iter.)   SkeletonResidualProvider: Omega against the plane patch map
+//                                (anchor_patches) or else the window F as it was before this
+//                                scan (Eq. 10), recomputed at every iteration.
+//   Finish  (after the update)   this scan's planes -> world with the converged pose -> window
+//                                (track association keeps ids stable); Omega -> patch map.
+//
+// Usage with the facade (Mode::kPpf installs this by default):
+//   auto tracker = std::make_shared<ppf::SkeletonTracker>(ppf_config);
+//   lio.SetScanSplitter(tracker);
+//   lio.AddResidualProvider(tracker->residual_provider());
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ppf_core/ppf/plane_patch_map.hpp"
+#include "ppf_core/ppf/plane_prefitter.hpp"
+#include "ppf_core/ppf_config.hpp"
+#include "ppf_core/lio/residual_provider.hpp"
+#include "ppf_core/ppf/skeleton_residual.hpp"
+#include "ppf_core/ppf/skeleton_window.hpp"
+
+namespace ppf {
+
+class SkeletonTracker : public ScanSplitter {
+ public:
+  explicit SkeletonTracker(const PpfConfig& config);
+
+  std::string Name() const override { return "ppf"; }
+  void Split(ScanFrame* frame) override;
+  void Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar) override;
+  void Reset() override;
+
+  // The skeleton residual provider reading this tracker's window (install it alongside).
+  std::shared_ptr<ResidualProvider> residual_provider() const { return provider_; }
+
+  const PpfConfig& config() const { return prefitter_.config(); }
+  const SkeletonWindow& window() const { return window_; }
+  const PlanePatchMap& patch_map() const { return patches_; }
+  const PrefitResult& last_prefit() const { return prefit_; }  // of the last Split
+  // Track ids of the last Finish, one per plane of last_prefit().planes.
+  const std::vector<int64_t>& last_track_ids() const { return last_ids_; }
+
+ private:
+  PlanePrefitter prefitter_;
+  SkeletonWindow window_;
+  PlanePatchMap patches_;
+  int scans_since_prune_ = 0;
+  std::shared_ptr<SkeletonResidualProvider> provider_;
+  PrefitResult prefit_;
+  std::vector<int64_t> last_ids_;
+};
+
+}  // namespace ppf

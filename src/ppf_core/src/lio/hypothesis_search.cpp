@@ -1,0 +1,115 @@
+#include "ppf_core/lio/hypothesis_search.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "ppf_core/lio/voxel_map.hpp"
+
+namespace ppf {
+namespace {
+
+ScanFrame Sample(const ScanFrame& frame, int max_points) {
+  ScanFrame s = frame;
+  const size_t n = frame.points_lidar.size();
+  const size_t stride =
+      max_points > 0 ? std::max<size_t>(1, n / static_cast<size_t>(max_points)) : 1;
+  s.points_lidar.clear();
+  for (size_t i = 0; i < n; i += stride) s.points_lidar.push_back(frame.points_lidar[i]);
+  s.labels.assign(s.points_lidar.size(), PointLabel::kScattered);
+  return s;
+}
+
+NavState StateAt(const Eigen::Isometry3d& T_world_lidar, const Eigen::Isometry3d& T_imu_lidar) {
+  NavState s;
+  const Eigen::Isometry3d T = T_world_lidar * T_imu_lidar.inverse();
+  s.R_world_imu = T.linear();
+  s.p_world_imu = T.translation();
+  // A weak prior: the guess is only where the search starts, the scan decides.
+  s.P = StateCov::Identity() * 1e-6;
+  s.P.block<3, 3>(kRot, kRot) = Eigen::Matrix3d::Identity();
+  s.P.block<3, 3>(kPos, kPos) = Eigen::Matrix3d::Identity() * 4.0;
+  return s;
+}
+
+}  // namespace
+
+FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+                  const LidarOnlyOptions& options, const KnnOptions& knn) {
+  FitScore f;
+  if (frame.points_lidar.empty() || frame.map == nullptr || frame.map->size() == 0) return f;
+  const VoxelMap& map = *frame.map;
+  const size_t k = static_cast<size_t>(std::max(3, knn.k));
+  const long n = static_cast<long>(frame.points_lidar.size());
+  long covered = 0, inliers = 0;
+#ifdef _OPENMP
+  const int threads = knn.num_threads > 0 ? knn.num_threads : omp_get_max_threads();
+#endif
+#pragma omp parallel num_threads(threads) reduction(+ : covered, inliers)
+  {
+    std::vector<Eigen::Vector3f> nn;
+#pragma omp for schedule(dynamic, 256)
+    for (long i = 0; i < n; ++i) {
+      const Eigen::Vector3d p =
+          T_world_lidar * frame.points_lidar[static_cast<size_t>(i)].cast<double>();
+      if (map.GetClosest(p.cast<float>(), k, knn.max_neighbor_distance, &nn) < k) continue;
+      ++covered;
+      Eigen::Vector3d normal;
+      double d;
+      if (!FitPlane(nn, knn.plane_threshold, &normal, &d, knn.min_plane_spread)) continue;
+      if (std::abs(normal.dot(p) + d) < options.fit_gate) ++inliers;
+    }
+  }
+  f.inliers = static_cast<size_t>(inliers);
+  f.covered = static_cast<size_t>(covered);
+  // Too few covered points say nothing (a pose in empty space); 5 % of the scan at least.
+  if (covered > 0 && static_cast<double>(covered) >= 0.05 * static_cast<double>(n)) {
+    f.fit = static_cast<double>(inliers) / static_cast<double>(covered);
+  }
+  return f;
+}
+
+CoarseAlignment AlignHypotheses(const ScanFrame& frame,
+                                const std::vector<MotionHypothesis>& hypotheses,
+                                const LidarOnlyOptions& options, const IekfOptions& iekf,
+                                const KnnOptions& knn) {
+  CoarseAlignment best;
+  if (hypotheses.empty()) return best;
+  best.T_world_lidar = hypotheses.front().T_world_lidar;
+  best.name = hypotheses.front().name;
+  if (frame.points_lidar.empty() || frame.map == nullptr) return best;
+
+  const ScanFrame sample = Sample(frame, options.coarse_points);
+  IekfOptions coarse = iekf;
+  coarse.max_iterations = std::max(1, options.coarse_iterations);
+  // The refined gate would drop the true matches of a guess that is still far off.
+  coarse.refined_gate = 0.0;
+  KnnOptions wide = knn;
+  wide.max_residual = std::max(knn.max_residual, options.coarse_max_residual);
+  KnnResidualProvider provider(wide);
+  size_t best_inliers = 0;
+  bool have = false;
+  for (size_t i = 0; i < hypotheses.size(); ++i) {
+    NavState s = StateAt(hypotheses[i].T_world_lidar, sample.T_imu_lidar);
+    provider.BeginScan(sample);
+    IekfUpdate(coarse, sample.T_imu_lidar, {&provider}, &s);
+    const Eigen::Isometry3d T = s.T_world_imu() * sample.T_imu_lidar;
+    const FitScore score = ScoreFit(sample, T, options, knn);
+    ++best.tried;
+    // The guess that explains the most points wins; the ratio only says whether to look further.
+    if (!have || score.inliers > best_inliers) {
+      have = true;
+      best_inliers = score.inliers;
+      best.fit = score.fit;
+      best.T_world_lidar = T;
+      best.name = hypotheses[i].name;
+    }
+    if (score.fit >= options.good_fit) break;
+  }
+  return best;
+}
+
+}  // namespace ppf

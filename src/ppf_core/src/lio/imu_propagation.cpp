@@ -1,0 +1,113 @@
+#include "ppf_core/lio/imu_propagation.hpp"
+
+#include <algorithm>
+
+#include "ppf_core/lio/so3.hpp"
+
+namespace ppf {
+
+Eigen::Isometry3d PoseTrace::PoseAt(double t) const {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  if (knots.empty()) return T;
+  // Last knot whose time is <= t (the first knot if t precedes it: extrapolate backwards).
+  auto it = std::upper_bound(knots.begin(), knots.end(), t,
+                             [](double v, const ImuKnot& k) { return v < k.t; });
+  const ImuKnot& k = (it == knots.begin()) ? knots.front() : *(it - 1);
+  const double tau = t - k.t;
+  T.linear() = k.R * SO3Exp(k.omega * tau);
+  T.translation() = k.p + k.v * tau + 0.5 * k.acc_world * tau * tau;
+  return T;
+}
+
+ImuSample InterpolateImu(const std::vector<ImuSample>& samples, double t) {
+  if (samples.empty()) return ImuSample{t, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  if (t <= samples.front().stamp_s) {
+    ImuSample s = samples.front();
+    s.stamp_s = t;
+    return s;
+  }
+  if (t >= samples.back().stamp_s) {
+    ImuSample s = samples.back();
+    s.stamp_s = t;
+    return s;
+  }
+  auto it = std::upper_bound(samples.begin(), samples.end(), t,
+                             [](double v, const ImuSample& s) { return v < s.stamp_s; });
+  const ImuSample& b = *it;
+  const ImuSample& a = *(it - 1);
+  const double span = b.stamp_s - a.stamp_s;
+  const double w = span > 1e-12 ? (t - a.stamp_s) / span : 0.0;
+  ImuSample s;
+  s.stamp_s = t;
+  s.angular_velocity = (1.0 - w) * a.angular_velocity + w * b.angular_velocity;
+  s.linear_acceleration = (1.0 - w) * a.linear_acceleration + w * b.linear_acceleration;
+  return s;
+}
+
+void PropagateImu(const std::vector<ImuSample>& samples, double t_end, double acc_scale,
+                  const ImuNoise& noise, NavState* state, PoseTrace* trace) {
+  const double t0 = state->stamp_s;
+  std::vector<double> times;
+  times.push_back(t0);
+  for (const ImuSample& s : samples) {
+    if (s.stamp_s > t0 && s.stamp_s < t_end) times.push_back(s.stamp_s);
+  }
+  if (t_end > t0) times.push_back(t_end);
+
+  ImuKnot knot;
+  ImuSample m0 = InterpolateImu(samples, t0);
+  for (size_t k = 0; k + 1 < times.size(); ++k) {
+    const double dt = times[k + 1] - times[k];
+    if (dt <= 0.0) continue;
+    const ImuSample m1 = InterpolateImu(samples, times[k + 1]);
+    const Eigen::Vector3d w =
+        0.5 * (m0.angular_velocity + m1.angular_velocity) - state->gyro_bias;
+    const Eigen::Vector3d a0 = acc_scale * m0.linear_acceleration - state->acc_bias;
+    const Eigen::Vector3d a1 = acc_scale * m1.linear_acceleration - state->acc_bias;
+    const Eigen::Matrix3d R0 = state->R_world_imu;
+    const Eigen::Matrix3d R1 = NormalizeRotation(R0 * SO3Exp(w * dt));
+    const Eigen::Vector3d a_world = 0.5 * (R0 * a0 + R1 * a1) + state->gravity_world;
+
+    if (trace) {
+      knot.t = times[k];
+      knot.R = R0;
+      knot.p = state->p_world_imu;
+      knot.v = state->v_world;
+      knot.omega = w;
+      knot.acc_world = a_world;
+      trace->knots.push_back(knot);
+    }
+
+    // Error-state transition over dt (first order), error order [th p v bg ba g(2)].
+    StateCov F = StateCov::Identity();
+    F.block<3, 3>(kRot, kRot) = SO3Exp(-w * dt);
+    F.block<3, 3>(kRot, kBg) = -Eigen::Matrix3d::Identity() * dt;
+    F.block<3, 3>(kPos, kVel) = Eigen::Matrix3d::Identity() * dt;
+    F.block<3, 3>(kVel, kRot) = -R0 * Skew(0.5 * (a0 + a1)) * dt;
+    F.block<3, 3>(kVel, kBa) = -R0 * dt;
+    F.block<3, 2>(kVel, kGrav) = S2Jacobian(state->gravity_world) * dt;
+    StateCov P = F * state->P * F.transpose();
+    P.block<3, 3>(kRot, kRot).diagonal().array() += noise.gyro * noise.gyro * dt;
+    P.block<3, 3>(kVel, kVel).diagonal().array() += noise.acc * noise.acc * dt;
+    P.block<3, 3>(kBg, kBg).diagonal().array() += noise.gyro_bias * noise.gyro_bias * dt;
+    P.block<3, 3>(kBa, kBa).diagonal().array() += noise.acc_bias * noise.acc_bias * dt;
+    P.block<2, 2>(kGrav, kGrav).diagonal().array() += noise.gravity_dir * noise.gravity_dir * dt;
+    state->P = 0.5 * (P + P.transpose());
+
+    state->p_world_imu += state->v_world * dt + 0.5 * a_world * dt * dt;
+    state->v_world += a_world * dt;
+    state->R_world_imu = R1;
+    m0 = m1;
+  }
+  if (t_end > t0) state->stamp_s = t_end;
+  if (trace) {
+    // Closing knot: extrapolation past the end keeps the last segment's rate and acceleration.
+    knot.t = state->stamp_s;
+    knot.R = state->R_world_imu;
+    knot.p = state->p_world_imu;
+    knot.v = state->v_world;
+    trace->knots.push_back(knot);
+  }
+}
+
+}  // namespace ppf

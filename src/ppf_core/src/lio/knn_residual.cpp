@@ -1,0 +1,106 @@
+#include "ppf_core/lio/knn_residual.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Eigenvalues>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace ppf {
+
+bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double threshold, Eigen::Vector3d* n,
+              double* d, double min_spread) {
+  if (pts.size() < 3) return false;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : pts) c += p.cast<double>();
+  c /= static_cast<double>(pts.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : pts) {
+    const Eigen::Vector3d q = p.cast<double>() - c;
+    cov += q * q.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  // Collinear neighbours (a single scan line) span no plane: the middle eigenvalue vanishes.
+  if (es.eigenvalues()(1) < 1e-6 * std::max(1e-12, es.eigenvalues()(2))) return false;
+  if (es.eigenvalues()(1) < min_spread * min_spread * static_cast<double>(pts.size())) return false;
+  *n = es.eigenvectors().col(0).normalized();
+  *d = -n->dot(c);
+  for (const auto& p : pts) {
+    if (std::abs(n->dot(p.cast<double>()) + *d) > threshold) return false;
+  }
+  return true;
+}
+
+void KnnResidualProvider::BeginScan(const ScanFrame& frame) {
+  frame_ = &frame;
+  indices_.clear();
+  for (size_t i = 0; i < frame.points_lidar.size(); ++i) {
+    if ((i >= frame.labels.size() || frame.labels[i] == PointLabel::kScattered) &&
+        frame.GivesResidual(frame.points_lidar[i])) {
+      indices_.push_back(i);
+    }
+  }
+  fits_.assign(indices_.size(), CachedFit());
+}
+
+void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
+                                      std::vector<PointPlaneRow>* rows) {
+  if (frame_ == nullptr || frame_->map == nullptr || frame_->map->size() == 0) return;
+  const VoxelMap& map = *frame_->map;
+  const long n = static_cast<long>(indices_.size());
+  std::vector<PointPlaneRow>& tmp = tmp_;
+  std::vector<char>& ok = ok_;
+  tmp.resize(indices_.size());
+  ok.assign(indices_.size(), 0);
+  const size_t k = static_cast<size_t>(std::max(3, options_.k));
+  const bool cache = k <= kMaxCachedK && fits_.size() == indices_.size();
+#ifdef _OPENMP
+  const int threads = options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
+#endif
+#pragma omp parallel num_threads(threads)
+  {
+    std::vector<Eigen::Vector3f> nn;
+#pragma omp for schedule(dynamic, 256)
+    for (long j = 0; j < n; ++j) {
+      const Eigen::Vector3d p_l = frame_->points_lidar[indices_[static_cast<size_t>(j)]].cast<double>();
+      const Eigen::Vector3d p_w = T_world_lidar * p_l;
+      if (map.GetClosest(p_w.cast<float>(), k, options_.max_neighbor_distance, &nn) < k) continue;
+      Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+      double d = 0.0;
+      CachedFit* fit = cache ? &fits_[static_cast<size_t>(j)] : nullptr;
+      if (fit != nullptr && fit->count == nn.size() &&
+          std::equal(nn.begin(), nn.end(), fit->nn)) {
+        if (!fit->ok) continue;
+        normal = fit->normal;
+        d = fit->d;
+      } else {
+        const bool ok_fit =
+            FitPlane(nn, options_.plane_threshold, &normal, &d, options_.min_plane_spread);
+        if (fit != nullptr) {
+          std::copy(nn.begin(), nn.end(), fit->nn);
+          fit->count = nn.size();
+          fit->ok = ok_fit;
+          fit->normal = normal;
+          fit->d = d;
+        }
+        if (!ok_fit) continue;
+      }
+      const double r = normal.dot(p_w) + d;
+      if (!(std::abs(r) < options_.max_residual)) continue;
+      PointPlaneRow& row = tmp[static_cast<size_t>(j)];
+      row.point_lidar = p_l;
+      row.normal_world = normal;
+      row.offset = d;
+      row.weight = 1.0;
+      ok[static_cast<size_t>(j)] = 1;
+    }
+  }
+  for (size_t j = 0; j < tmp.size(); ++j) {
+    if (ok[j]) rows->push_back(tmp[j]);
+  }
+}
+
+}  // namespace ppf

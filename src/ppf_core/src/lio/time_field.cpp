@@ -1,0 +1,439 @@
+#include "ppf_core/lio/time_field.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <sstream>
+
+namespace ppf {
+namespace {
+
+constexpr double kTwoPi = 6.283185307179586;
+
+const FieldDesc* FindField(const CloudView& cloud, const std::string& name) {
+  for (const FieldDesc& f : cloud.fields) {
+    if (f.name == name) return &f;
+  }
+  return nullptr;
+}
+
+inline double ReadFloat32(const uint8_t* p) {
+  float v;
+  std::memcpy(&v, p, 4);
+  return v;
+}
+
+// Reads one element; the caller guarantees offset + size <= point_step within the buffer.
+double ReadAs(const uint8_t* p, FieldType type) {
+  switch (type) {
+    case FieldType::kInt8: {
+      int8_t v;
+      std::memcpy(&v, p, 1);
+      return v;
+    }
+    case FieldType::kUint8:
+      return *p;
+    case FieldType::kInt16: {
+      int16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    case FieldType::kUint16: {
+      uint16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    case FieldType::kInt32: {
+      int32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case FieldType::kUint32: {
+      uint32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case FieldType::kFloat32: {
+      float v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case FieldType::kFloat64: {
+      double v;
+      std::memcpy(&v, p, 8);
+      return v;
+    }
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+bool FieldFits(const FieldDesc& f, uint32_t point_step) {
+  const size_t sz = FieldTypeSize(f.type);
+  return sz > 0 && static_cast<uint64_t>(f.offset) + sz <= point_step;
+}
+
+const char* TypeName(FieldType t) {
+  switch (t) {
+    case FieldType::kInt8:
+      return "int8";
+    case FieldType::kUint8:
+      return "uint8";
+    case FieldType::kInt16:
+      return "int16";
+    case FieldType::kUint16:
+      return "uint16";
+    case FieldType::kInt32:
+      return "int32";
+    case FieldType::kUint32:
+      return "uint32";
+    case FieldType::kFloat32:
+      return "float32";
+    case FieldType::kFloat64:
+      return "float64";
+  }
+  return "unknown";
+}
+
+bool IsIntegerType(FieldType t) { return t != FieldType::kFloat32 && t != FieldType::kFloat64; }
+
+// The configured time field, or the first of the known names the cloud has.
+const FieldDesc* FindTimeField(const CloudView& cloud, const std::string& configured_name) {
+  if (!configured_name.empty()) return FindField(cloud, configured_name);
+  for (const std::string& name : KnownTimeFieldNames()) {
+    if (const FieldDesc* f = FindField(cloud, name)) return f;
+  }
+  return nullptr;
+}
+
+// Visits the points in index order, row by row (no division per point): visit(i, point bytes).
+template <typename Visit>
+void ForEachPoint(const CloudView& cloud, Visit&& visit) {
+  const uint64_t row_step =
+      cloud.row_step == 0 ? static_cast<uint64_t>(cloud.width) * cloud.point_step : cloud.row_step;
+  size_t i = 0;
+  for (uint32_t row = 0; row < cloud.height; ++row) {
+    const uint8_t* p = cloud.data + row * row_step;
+    for (uint32_t col = 0; col < cloud.width; ++col, ++i, p += cloud.point_step) visit(i, p);
+  }
+}
+
+// The raw (unscaled) value of the time field of every point, in index order.
+void ReadRawTimes(const CloudView& cloud, const FieldDesc& ft, std::vector<double>* raw_t) {
+  raw_t->resize(static_cast<size_t>(cloud.width) * cloud.height);
+  double* raw = raw_t->data();
+  if (ft.type == FieldType::kFloat32) {
+    ForEachPoint(cloud, [&](size_t i, const uint8_t* p) { raw[i] = ReadFloat32(p + ft.offset); });
+  } else {
+    ForEachPoint(cloud,
+                 [&](size_t i, const uint8_t* p) { raw[i] = ReadAs(p + ft.offset, ft.type); });
+  }
+}
+
+// Point time = base + raw * scale, or the header stamp for every point when raw is null.
+struct TimeMap {
+  const double* raw = nullptr;
+  double base = 0.0;
+  double scale = 1.0;
+  double stamp_s = 0.0;
+  double At(size_t i) const { return raw ? base + raw[i] * scale : stamp_s; }
+};
+
+// Where raw time zero lies: nowhere for absolute times (base 0), the header stamp for times
+// relative to the scan start, and stamp - last time for stamp-at-end clouds whose times are
+// non-negative (times ending at 0 are offsets from the end already).
+double TimeBase(const TimeFieldInfo& info, double stamp_s, const std::vector<double>& raw_t) {
+  if (info.absolute) return 0.0;
+  if (!info.stamp_at_end) return stamp_s;
+  double hi = -std::numeric_limits<double>::infinity();
+  for (double v : raw_t) {
+    if (std::isfinite(v)) hi = std::max(hi, v * info.unit_scale_s);
+  }
+  return std::isfinite(hi) && hi > 0.0 ? stamp_s - hi : stamp_s;
+}
+
+// The coordinate and intensity fields of a validated cloud (intensity null when absent or not
+// fitting in point_step).
+struct PointFields {
+  const FieldDesc* x;
+  const FieldDesc* y;
+  const FieldDesc* z;
+  const FieldDesc* intensity;
+  bool XyzFloat32() const {
+    return x->type == FieldType::kFloat32 && y->type == FieldType::kFloat32 &&
+           z->type == FieldType::kFloat32;
+  }
+  bool IntensityFloat32() const { return intensity && intensity->type == FieldType::kFloat32; }
+};
+
+// Every field float32 (nearly every driver): one pass writing straight into the output, with
+// the general path's values and validity test (a non-finite or > 1e30 coordinate fails
+// |c| <= 1e30; the time is the same double).
+void DecodeAllFloat32(const CloudView& cloud, const PointFields& f, const TimeMap& times,
+                      DecodedScan* out) {
+  out->points.resize(static_cast<size_t>(cloud.width) * cloud.height);
+  TimedPoint* dst = out->points.data();
+  size_t kept = 0;
+  const uint32_t ox = f.x->offset, oy = f.y->offset, oz = f.z->offset;
+  const uint32_t oi = f.intensity ? f.intensity->offset : 0;
+  ForEachPoint(cloud, [&](size_t i, const uint8_t* p) {
+    const double x = ReadFloat32(p + ox), y = ReadFloat32(p + oy), z = ReadFloat32(p + oz);
+    const double t = times.At(i);
+    if (!(std::abs(x) <= 1e30 && std::abs(y) <= 1e30 && std::abs(z) <= 1e30) || !std::isfinite(t)) {
+      ++out->dropped_nan;
+      return;
+    }
+    TimedPoint& tp = dst[kept++];
+    tp.p = Eigen::Vector3f(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
+    tp.t = t;
+    if (f.intensity) {
+      const double v = ReadFloat32(p + oi);
+      tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
+    } else {
+      tp.intensity = 0.f;
+    }
+  });
+  out->points.resize(kept);
+}
+
+// Any field types: each element read through its type (float32 x/y/z and intensity skip the
+// per-element type dispatch; the values and the validity test are the same as through ReadAs).
+void DecodeGeneral(const CloudView& cloud, const PointFields& f, const TimeMap& times,
+                   DecodedScan* out) {
+  const bool xyz_f32 = f.XyzFloat32();
+  const bool intensity_f32 = f.IntensityFloat32();
+  out->points.reserve(static_cast<size_t>(cloud.width) * cloud.height);
+  ForEachPoint(cloud, [&](size_t i, const uint8_t* p) {
+    const Eigen::Vector3d xyz =
+        xyz_f32 ? Eigen::Vector3d(ReadFloat32(p + f.x->offset), ReadFloat32(p + f.y->offset),
+                                  ReadFloat32(p + f.z->offset))
+                : Eigen::Vector3d(ReadAs(p + f.x->offset, f.x->type),
+                                  ReadAs(p + f.y->offset, f.y->type),
+                                  ReadAs(p + f.z->offset, f.z->type));
+    TimedPoint tp;
+    tp.t = times.At(i);
+    // float64 coordinates beyond float range would overflow the conversion: treat as invalid.
+    if (!xyz.allFinite() || xyz.cwiseAbs().maxCoeff() > 1e30 || !std::isfinite(tp.t)) {
+      ++out->dropped_nan;
+      return;
+    }
+    tp.p = xyz.cast<float>();
+    if (f.intensity) {
+      const FieldDesc& fi = *f.intensity;
+      const double v = intensity_f32 ? ReadFloat32(p + fi.offset) : ReadAs(p + fi.offset, fi.type);
+      tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
+    }
+    out->points.push_back(tp);
+  });
+}
+
+// No time field: spread the points over one spin period by their azimuth from the first point
+// (a spinning LiDAR assumed), or leave every point at the header stamp.
+void ApplyNoTimePolicy(const TimeFieldOptions& options, double stamp_s, DecodedScan* out) {
+  if (options.no_time_policy != NoTimePolicy::kAzimuth || out->points.empty()) {
+    out->note = "no time field: scan not de-skewed";
+    return;
+  }
+  const double period = options.scan_period_s > 0.0 ? options.scan_period_s : 0.1;
+  const double start = options.stamp_position == StampPosition::kEnd ? stamp_s - period : stamp_s;
+  const double a0 = std::atan2(out->points.front().p.y(), out->points.front().p.x());
+  for (TimedPoint& tp : out->points) {
+    const double a = std::atan2(tp.p.y(), tp.p.x());
+    double swept = options.azimuth_clockwise ? a0 - a : a - a0;
+    swept = std::fmod(swept, kTwoPi);
+    if (swept < 0.0) swept += kTwoPi;
+    tp.t = start + period * swept / kTwoPi;
+  }
+  out->times_estimated = true;
+  out->note = "no time field: point times estimated from azimuth";
+}
+
+// t_begin / t_end: the earliest and latest point time (left at the stamp without points).
+void SetTimeSpan(DecodedScan* out) {
+  if (out->points.empty()) return;
+  double lo = out->points.front().t, hi = lo;
+  for (const TimedPoint& tp : out->points) {
+    lo = std::min(lo, tp.t);
+    hi = std::max(hi, tp.t);
+  }
+  out->t_begin = lo;
+  out->t_end = hi;
+}
+
+}  // namespace
+
+const std::vector<std::string>& KnownTimeFieldNames() {
+  static const std::vector<std::string> names = {"t", "time", "timestamp", "time_stamp",
+                                                 "offset_time"};
+  return names;
+}
+
+std::string TimeFieldInfo::Describe() const {
+  if (!present) return "no per-point time field";
+  std::ostringstream os;
+  os << "time field '" << name << "' " << TypeName(type) << " (x" << unit_scale_s << " s), "
+     << (absolute ? "absolute" : "relative to the header stamp");
+  if (!absolute) os << (stamp_at_end ? ", header stamp at scan end" : ", header stamp at scan start");
+  return os.str();
+}
+
+std::string ValidateCloudLayout(const CloudView& cloud) {
+  const uint64_t n = static_cast<uint64_t>(cloud.width) * cloud.height;
+  if (cloud.is_bigendian) return "big-endian point clouds are not supported";
+  const FieldDesc* fx = FindField(cloud, "x");
+  const FieldDesc* fy = FindField(cloud, "y");
+  const FieldDesc* fz = FindField(cloud, "z");
+  if (!fx || !fy || !fz) return "cloud lacks an x, y or z field";
+  for (const FieldDesc* f : {fx, fy, fz}) {
+    if (f->type != FieldType::kFloat32 && f->type != FieldType::kFloat64)
+      return "field '" + f->name + "' must be float32 or float64";
+    if (!FieldFits(*f, cloud.point_step)) {
+      std::ostringstream os;
+      os << "point_step " << cloud.point_step << " too small for field '" << f->name
+         << "' at offset " << f->offset;
+      return os.str();
+    }
+  }
+  for (const FieldDesc& f : cloud.fields) {
+    if (FieldTypeSize(f.type) == 0) return "field '" + f.name + "' has an unknown datatype";
+  }
+  if (n == 0) return "";
+  if (cloud.data == nullptr) return "cloud has points but no data";
+  const uint64_t row_bytes = static_cast<uint64_t>(cloud.width) * cloud.point_step;
+  const uint64_t row_step = cloud.row_step == 0 ? row_bytes : cloud.row_step;
+  if (row_step < row_bytes) {
+    std::ostringstream os;
+    os << "row_step " << cloud.row_step << " < width * point_step " << row_bytes;
+    return os.str();
+  }
+  const uint64_t needed = (cloud.height - 1) * row_step + row_bytes;
+  if (cloud.size < needed) {
+    std::ostringstream os;
+    os << "size mismatch: " << cloud.size << " bytes for " << cloud.width << "x" << cloud.height
+       << " points of " << cloud.point_step << " bytes (need " << needed << ")";
+    return os.str();
+  }
+  return "";
+}
+
+TimeFieldDecoder::TimeFieldDecoder(const TimeFieldOptions& options, LogCallback log)
+    : options_(options), log_(std::move(log)) {}
+
+void TimeFieldDecoder::Detect(const CloudView& cloud, const FieldDesc* time_field,
+                              const std::vector<double>& raw) {
+  info_ = TimeFieldInfo();
+  info_.detected = true;
+  if (time_field == nullptr) {
+    info_.present = false;
+    if (log_) {
+      log_(LogLevel::kWarn,
+           std::string("no per-point time field (looked for ") +
+               (options_.field_name.empty() ? "t/time/timestamp/time_stamp/offset_time"
+                                            : options_.field_name) +
+               "): " +
+               (options_.no_time_policy == NoTimePolicy::kAzimuth
+                    ? "estimating point times from azimuth (spinning LiDAR assumed)"
+                    : "no de-skew"));
+    }
+    return;
+  }
+  info_.present = true;
+  info_.name = time_field->name;
+  info_.type = time_field->type;
+  info_.offset = time_field->offset;
+  info_.unit_scale_s = options_.unit_scale_s > 0.0
+                           ? options_.unit_scale_s
+                           : (IsIntegerType(time_field->type) ? 1e-9 : 1.0);
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  std::vector<double> finite;
+  finite.reserve(raw.size());
+  for (double v : raw) {
+    if (std::isfinite(v)) {
+      finite.push_back(v * info_.unit_scale_s);
+      lo = std::min(lo, finite.back());
+      hi = std::max(hi, finite.back());
+    }
+  }
+  double median = 0.0;
+  if (!finite.empty()) {
+    std::nth_element(finite.begin(), finite.begin() + finite.size() / 2, finite.end());
+    median = finite[finite.size() / 2];
+  }
+  switch (options_.reference) {
+    case TimeReference::kAbsolute:
+      info_.absolute = true;
+      break;
+    case TimeReference::kRelative:
+      info_.absolute = false;
+      break;
+    case TimeReference::kAuto:
+      // Relative offsets are a fraction of a second; absolute times sit next to the header stamp.
+      // With a stamp near zero (simulation clocks) the two are indistinguishable: assume relative.
+      info_.absolute = !finite.empty() && std::abs(cloud.stamp_s) > 10.0 &&
+                       std::abs(median - cloud.stamp_s) < 1.0;
+      break;
+  }
+  switch (options_.stamp_position) {
+    case StampPosition::kStart:
+      info_.stamp_at_end = false;
+      break;
+    case StampPosition::kEnd:
+      info_.stamp_at_end = true;
+      break;
+    case StampPosition::kAuto:
+      info_.stamp_at_end = !info_.absolute && !finite.empty() && hi <= 1e-6 && lo < 0.0;
+      break;
+  }
+  if (log_) log_(LogLevel::kInfo, "per-point time: " + info_.Describe());
+}
+
+bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::string* error) {
+  *out = DecodedScan();
+  out->t_begin = out->t_end = cloud.stamp_s;
+  const std::string layout_error = ValidateCloudLayout(cloud);
+  if (!layout_error.empty()) {
+    if (error) *error = layout_error;
+    return false;
+  }
+  const size_t n = static_cast<size_t>(cloud.width) * cloud.height;
+  out->input_points = n;
+  if (n == 0) return true;
+
+  PointFields fields{FindField(cloud, "x"), FindField(cloud, "y"), FindField(cloud, "z"),
+                     FindField(cloud, "intensity")};
+  if (fields.intensity && !FieldFits(*fields.intensity, cloud.point_step)) {
+    fields.intensity = nullptr;
+  }
+  const FieldDesc* ft = FindTimeField(cloud, options_.field_name);
+  if (ft && !FieldFits(*ft, cloud.point_step)) {
+    if (error) *error = "time field '" + ft->name + "' lies outside point_step";
+    return false;
+  }
+
+  raw_t_.clear();
+  if (ft) ReadRawTimes(cloud, *ft, &raw_t_);
+  // Detect once; a later change of layout (different field) triggers a new detection.
+  if (!info_.detected || info_.present != (ft != nullptr) ||
+      (ft && (ft->name != info_.name || ft->type != info_.type))) {
+    Detect(cloud, ft, raw_t_);
+  }
+
+  out->has_time_field = ft != nullptr;
+  TimeMap times;
+  times.stamp_s = cloud.stamp_s;
+  if (ft) {
+    times.raw = raw_t_.data();
+    times.base = TimeBase(info_, cloud.stamp_s, raw_t_);
+    times.scale = info_.unit_scale_s;
+  }
+  if (fields.XyzFloat32() && (!fields.intensity || fields.IntensityFloat32())) {
+    DecodeAllFloat32(cloud, fields, times, out);
+  } else {
+    DecodeGeneral(cloud, fields, times, out);
+  }
+  if (!ft) ApplyNoTimePolicy(options_, cloud.stamp_s, out);
+  SetTimeSpan(out);
+  return true;
+}
+
+}  // namespace ppf

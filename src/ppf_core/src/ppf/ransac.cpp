@@ -1,0 +1,172 @@
+#include "ppf_core/ppf/ransac.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace ppf {
+namespace {
+
+// Hypotheses scored per parallel batch. Fixed (not tied to the thread count) so the sequence of
+// samples and the adaptive stop are identical for any number of threads.
+constexpr int kBatch = 16;
+// Below this many point evaluations a parallel region costs more than it saves: serial scoring
+// runs at ~1 ns per point, and a fork/join on a shared 2-core machine can cost a scheduler slice.
+constexpr long kParallelWork = 262144;
+
+struct Hypothesis {
+  Eigen::Vector3f n;
+  float d;
+};
+
+// Structure-of-arrays copy of the points: the scoring loop below then vectorises (4-8 points per
+// instruction); with Vector3f's 12-byte stride it does not.
+struct SoaPoints {
+  std::vector<float> x, y, z;
+  // Every stride-th point of pts (all of them for stride 1).
+  SoaPoints(const std::vector<Eigen::Vector3f>& pts, size_t stride) {
+    const size_t m = (pts.size() + stride - 1) / stride;
+    x.resize(m);
+    y.resize(m);
+    z.resize(m);
+    for (size_t i = 0, j = 0; j < m; i += stride, ++j) {
+      x[j] = pts[i].x();
+      y[j] = pts[i].y();
+      z[j] = pts[i].z();
+    }
+  }
+};
+
+// Pre-test: most hypotheses (three points on different surfaces) have a small fraction of the
+// support of the best plane so far, or of the least support a plane needs (min_inliers). Each is
+// first counted on a strided subset (every kPretestMaxStride-th point at most, at least
+// kPretestMinSubset points) and only counted in full if its subset count projects to at least half
+// that reference. The rejection is trusted only when the reference's expected subset count is at
+// least kPretestMinExpected, so a hypothesis as good as the reference is rejected only by a rare
+// sampling fluctuation (and one merely equal to the best would not replace it anyway).
+constexpr size_t kPretestMaxStride = 8;
+constexpr size_t kPretestMinSubset = 256;
+constexpr long kPretestMinExpected = 16;
+
+int CountInliersSoa(const SoaPoints& p, const Hypothesis& h, float delta) {
+  const float nx = h.n.x(), ny = h.n.y(), nz = h.n.z(), d = h.d;
+  const float* x = p.x.data();
+  const float* y = p.y.data();
+  const float* z = p.z.data();
+  const size_t n = p.x.size();
+  int count = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const float dist = nx * x[i] + ny * y[i] + nz * z[i] + d;
+    count += (std::abs(dist) < delta) ? 1 : 0;
+  }
+  return count;
+}
+
+}  // namespace
+
+int RansacIterationsNeeded(double inlier_ratio, double confidence, int max_iterations) {
+  max_iterations = std::max(1, max_iterations);
+  if (!(inlier_ratio > 0.0)) return max_iterations;
+  if (inlier_ratio >= 1.0) return 1;
+  const double w3 = inlier_ratio * inlier_ratio * inlier_ratio;
+  const double denom = std::log1p(-w3);  // log(1 - w^3), accurate for tiny w^3
+  if (!(denom < 0.0)) return max_iterations;
+  const double k = std::log(1.0 - std::clamp(confidence, 0.0, 1.0 - 1e-12)) / denom;
+  if (!std::isfinite(k) || k >= max_iterations) return max_iterations;
+  return std::max(1, static_cast<int>(std::ceil(k)));
+}
+
+int CountPlaneInliers(const std::vector<Eigen::Vector3f>& points, const Plane& plane,
+                      double delta) {
+  const float nx = static_cast<float>(plane.n.x()), ny = static_cast<float>(plane.n.y()),
+              nz = static_cast<float>(plane.n.z()), d = static_cast<float>(plane.d);
+  const float fdelta = static_cast<float>(delta);
+  const long n = static_cast<long>(points.size());
+  int count = 0;
+#pragma omp parallel for reduction(+ : count) schedule(static) if (n > kParallelWork / 8)
+  for (long i = 0; i < n; ++i) {
+    const auto& p = points[i];
+    count += (std::abs(nx * p.x() + ny * p.y() + nz * p.z() + d) < fdelta) ? 1 : 0;
+  }
+  return count;
+}
+
+RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const RansacParams& params,
+                            SplitMix64* rng) {
+  RansacResult result;
+  const size_t n = points.size();
+  if (n < 3 || n > std::numeric_limits<uint32_t>::max()) return result;
+  const int max_iterations = std::max(1, params.max_iterations);
+  const int max_degenerate = std::max(1, params.max_degenerate_samples);
+  const float delta = static_cast<float>(params.delta);
+  const int min_inliers = std::max(3, params.min_inliers);
+
+  const SoaPoints soa(points, 1);
+  const size_t stride = std::clamp<size_t>(n / kPretestMinSubset, 1, kPretestMaxStride);
+  const SoaPoints subset(points, stride > 1 ? stride : n);  // unused when stride is 1
+  const long m = static_cast<long>(subset.x.size());
+  int needed = max_iterations;
+  int best_count = -1;
+  Hypothesis best{Eigen::Vector3f::UnitZ(), 0.0f};
+  Hypothesis batch[kBatch];
+  int batch_count[kBatch];
+
+  while (result.iterations < needed && result.degenerate_samples < max_degenerate) {
+    // Draw the batch serially: the sample sequence must not depend on the thread schedule.
+    int filled = 0;
+    const int want = std::min(kBatch, needed - result.iterations);
+    while (filled < want && result.degenerate_samples < max_degenerate) {
+      const uint32_t i0 = rng->Below(static_cast<uint32_t>(n));
+      const uint32_t i1 = rng->Below(static_cast<uint32_t>(n));
+      const uint32_t i2 = rng->Below(static_cast<uint32_t>(n));
+      std::optional<Plane> plane;
+      if (i0 != i1 && i1 != i2 && i0 != i2) {
+        plane = Plane::FromPoints(points[i0].cast<double>(), points[i1].cast<double>(),
+                                  points[i2].cast<double>(), params.min_sample_area);
+      }
+      if (!plane) {
+        ++result.degenerate_samples;
+        continue;
+      }
+      batch[filled].n = plane->n.cast<float>();
+      batch[filled].d = static_cast<float>(plane->d);
+      ++filled;
+    }
+    if (filled == 0) break;
+
+    // The reference is fixed during the batch, so the pre-test decisions do not depend on threads.
+    const long reference = std::max<long>(best_count, min_inliers);
+    const bool pretest = stride > 1 && reference * m >= kPretestMinExpected * static_cast<long>(n);
+#pragma omp parallel for schedule(static) if (static_cast <long>(n) * filled > kParallelWork)
+    for (int b = 0; b < filled; ++b) {
+      if (pretest) {
+        const long sub = CountInliersSoa(subset, batch[b], delta);
+        if (2 * sub * static_cast<long>(n) < reference * m) {
+          batch_count[b] = -1;  // rejected: not counted, cannot become the best
+          continue;
+        }
+      }
+      batch_count[b] = CountInliersSoa(soa, batch[b], delta);
+    }
+
+    for (int b = 0; b < filled; ++b) {
+      ++result.iterations;
+      if (batch_count[b] < 0) ++result.pretest_rejected;
+      if (batch_count[b] > best_count) {
+        best_count = batch_count[b];
+        best = batch[b];
+        needed = RansacIterationsNeeded(static_cast<double>(best_count) / static_cast<double>(n),
+                                        params.confidence, max_iterations);
+      }
+    }
+  }
+
+  if (best_count < 0) return result;  // only degenerate samples, or none passed the pre-test
+  result.num_inliers = best_count;
+  result.plane.n = best.n.cast<double>().normalized();
+  result.plane.d = static_cast<double>(best.d);
+  result.success = best_count >= min_inliers;
+  return result;
+}
+
+}  // namespace ppf

@@ -1,0 +1,42 @@
+#include "ppf_core/ppf/sandwich_layer.hpp"
+
+#include <cmath>
+
+namespace ppf {
+
+void SplitSandwich(const std::vector<Eigen::Vector3f>& points, const Plane& plane, double delta,
+                   double semi_factor, SandwichSplit* split) {
+  split->strict.clear();
+  split->semi.clear();
+  split->outliers.clear();
+  const long n = static_cast<long>(points.size());
+  std::vector<uint8_t> label(points.size());
+  const float nx = static_cast<float>(plane.n.x()), ny = static_cast<float>(plane.n.y()),
+              nz = static_cast<float>(plane.n.z()), d = static_cast<float>(plane.d);
+  const float strict = static_cast<float>(delta);
+  const float semi = static_cast<float>(delta * (semi_factor > 1.0 ? semi_factor : 1.0));
+// Parallel only for full-resolution scans; see ipca.cpp for the measured reason.
+#pragma omp parallel for schedule(static) if (n > 32768)
+  for (long i = 0; i < n; ++i) {
+    const auto& p = points[i];
+    const float a = std::abs(nx * p.x() + ny * p.y() + nz * p.z() + d);
+    label[i] = a < strict ? 0 : (a < semi ? 1 : 2);
+  }
+  // Serial compaction keeps the order deterministic; it is a cheap linear pass.
+  for (long i = 0; i < n; ++i) {
+    const int idx = static_cast<int>(i);
+    switch (label[i]) {
+      case 0:
+        split->strict.push_back(idx);
+        break;
+      case 1:
+        split->semi.push_back(idx);
+        break;
+      default:
+        split->outliers.push_back(idx);
+        break;
+    }
+  }
+}
+
+}  // namespace ppf

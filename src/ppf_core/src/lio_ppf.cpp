@@ -339,7 +339,13 @@ void LioPpf::Reset() {
   impl_->decoder.Reset();
 }
 const Config& LioPpf::config() const { return impl_->config; }
-const VoxelMap& LioPpf::map() const { return impl_->map; }
+MapStats LioPpf::map_stats() const {
+  MapStats s;
+  s.points = impl_->map.size();
+  s.voxels = impl_->map.num_voxels();
+  s.capacity_points = impl_->map.capacity_points();
+  return s;
+}
 const TimeFieldInfo& LioPpf::time_field_info() const { return impl_->decoder.info(); }
 bool LioPpf::initialized() const { return impl_->initialized; }
 bool LioPpf::lidar_only() const { return impl_->lidar_only; }

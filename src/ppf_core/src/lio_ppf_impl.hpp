@@ -22,11 +22,19 @@
 #include <Eigen/Geometry>
 
 #include "ppf_core/lio/hypothesis_search.hpp"
-#include "ppf_core/lio_ppf.hpp"
+#include "ppf_core/lio/iekf.hpp"
+#include "ppf_core/lio/imu_init.hpp"
+#include "ppf_core/lio/imu_propagation.hpp"
+#include "ppf_core/lio/knn_residual.hpp"
 #include "ppf_core/lio/motion_model.hpp"
 #include "ppf_core/lio/moving_start.hpp"
 #include "ppf_core/lio/preprocess.hpp"
+#include "ppf_core/lio/residual_provider.hpp"
+#include "ppf_core/lio/time_field.hpp"
+#include "ppf_core/lio/voxel_map.hpp"
+#include "ppf_core/lio_ppf.hpp"
 #include "ppf_core/ppf/skeleton_tracker.hpp"
+#include "ppf_core/ppf/skeleton_window.hpp"
 
 namespace ppf {
 

@@ -45,7 +45,7 @@ TEST(LioPpf, InitializingUntilOneSecondOfStaticImu) {
   r = lio.ProcessScan(s1.view);
   EXPECT_EQ(r.status, Status::kOk) << r.reason;
   EXPECT_NE(r.reason.find("map initialized"), std::string::npos);
-  EXPECT_GT(lio.map().size(), 0u);
+  EXPECT_GT(lio.map_stats().points, 0u);
   FeedStill(&lio, 1.605, 1.7);
   const test::CloudBuffer s2 = StillScan(1.5);
   r = lio.ProcessScan(s2.view);
@@ -84,7 +84,7 @@ TEST(LioPpf, MalformedCloudIsRejectedAndChangesNothing) {
   r = lio.ProcessScan(bad);
   EXPECT_EQ(r.status, Status::kRejected);
   EXPECT_NE(r.reason.find("size mismatch"), std::string::npos) << r.reason;
-  EXPECT_EQ(lio.map().size(), 0u);
+  EXPECT_EQ(lio.map_stats().points, 0u);
   EXPECT_FALSE(logs.empty());
   // A good scan afterwards works normally.
   r = lio.ProcessScan(good.view);
@@ -118,7 +118,7 @@ TEST(LioPpf, TimeGoingBackwardsResets) {
   EXPECT_EQ(rs.front().status, Status::kReset);
   EXPECT_NE(rs.front().reason.find("backwards"), std::string::npos) << rs.front().reason;
   EXPECT_FALSE(lio.initialized());
-  EXPECT_EQ(lio.map().size(), 0u);
+  EXPECT_EQ(lio.map_stats().points, 0u);
   // Recovers: a new static second initializes again.
   FeedStill(&lio, 0.205, 1.5);
   EXPECT_TRUE(lio.initialized());
@@ -322,7 +322,7 @@ TEST(LioPpf, PpfModeUsesSplitterLabelsForResidualsAndMap) {
   const test::CloudBuffer s1 = StillScan(1.0);
   ScanResult r = lio.ProcessScan(s1.view);  // map initialization: no split yet
   ASSERT_EQ(r.status, Status::kOk);
-  const size_t map_before = lio.map().size();
+  const size_t map_before = lio.map_stats().points;
   const test::CloudBuffer s2 = StillScan(1.1);
   r = lio.ProcessScan(s2.view);
   ASSERT_TRUE(r.pose_valid) << r.reason;
@@ -336,7 +336,7 @@ TEST(LioPpf, PpfModeUsesSplitterLabelsForResidualsAndMap) {
   EXPECT_EQ(r.map_inserted, r.scattered_points);  // only map points enter the map
   EXPECT_GT(r.skeleton_residuals, 0u);
   EXPECT_LE(r.knn_residuals, r.scattered_points);
-  EXPECT_LE(lio.map().size(), map_before + r.scattered_points);
+  EXPECT_LE(lio.map_stats().points, map_before + r.scattered_points);
 }
 
 TEST(LioPpf, PpfModeWithoutSplitterSaysSo) {

@@ -159,7 +159,7 @@ class Tally {
     const sim::Trajectory& traj = drive_.world.trajectory;
     const Eigen::Isometry3d T_gt = traj.Pose(std::min(t, traj.end_time()));
     AddDistance(T_gt.translation());
-    const size_t voxels = lio_.map().num_voxels();
+    const size_t voxels = lio_.map_stats().voxels;
     const double rss = CurrentRssMb();
     if (t < 0.5 * options_.duration) {
       rep.max_map_first_half = std::max(rep.max_map_first_half, r.map_size);
@@ -244,7 +244,7 @@ EnduranceReport RunEndurance(const EnduranceOptions& options, const Config& conf
   config.T_imu_lidar = drive.scan_options.T_imu_lidar;
   LioPpf lio(config);
   rep.map_radius = config.map_radius;
-  rep.map_capacity_points = lio.map().capacity_points();
+  rep.map_capacity_points = lio.map_stats().capacity_points;
   rep.rss_start_mb = CurrentRssMb();
   Tally tally(options, drive, lio, &rep, on_row, t_start);
 

@@ -4,7 +4,8 @@
 // config/reference.yaml (every key, each value equal to the default here; test_config_yaml fails
 // when the two differ, or when a key of the loader's table is missing there). The presets
 // (config/vlp16.yaml, ...) hold only what differs from it. The comments below say why a default is
-// what it is; the option structs of the stages (time_field.hpp, voxel_map.hpp, ...) do the same.
+// what it is. Every stage's options are here, before Config, so that this one header is the whole
+// schema and the stages (lio/, ppf/) depend on it rather than the other way round.
 //
 // Validation: ValidateConfig() is the one rule set. LoadConfigYaml() applies it so that a clamped
 // value is reported with the file that set it; LioPpf applies it again for configs built in code
@@ -12,24 +13,178 @@
 // the config they are given.
 #pragma once
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "ppf_core/lio/hypothesis_search.hpp"
-#include "ppf_core/lio/iekf.hpp"
-#include "ppf_core/lio/imu_init.hpp"
-#include "ppf_core/lio/imu_propagation.hpp"
-#include "ppf_core/lio/knn_residual.hpp"
 #include "ppf_core/log.hpp"
 #include "ppf_core/ppf_config.hpp"
-#include "ppf_core/lio/time_field.hpp"
-#include "ppf_core/lio/voxel_map.hpp"
 
 namespace ppf {
 
+// --- options of time_field.hpp (per-point time conventions) -------------------------------------
+enum class StampPosition { kAuto, kStart, kEnd };
+enum class TimeReference { kAuto, kRelative, kAbsolute };
+enum class NoTimePolicy { kNoDeskew, kAzimuth };
+
+struct TimeFieldOptions {
+  std::string field_name;        // "" = detect among t, time, timestamp, time_stamp, offset_time
+  double unit_scale_s = 0.0;     // seconds per raw unit; 0 = by type (uint -> 1e-9, float -> 1)
+  TimeReference reference = TimeReference::kAuto;
+  StampPosition stamp_position = StampPosition::kAuto;
+  NoTimePolicy no_time_policy = NoTimePolicy::kAzimuth;
+  double scan_period_s = 0.1;    // spin period, used only by the azimuth estimate
+  bool azimuth_clockwise = true; // Velodyne/Ouster spin clockwise seen from above
+};
+
+// --- options of voxel_map.hpp (the kNN map) -----------------------------------------------------
+enum class NearbyType { kCenter = 1, kNearby7 = 7, kNearby19 = 19, kNearby27 = 27 };
+
+struct VoxelMapOptions {
+  double resolution = 0.5;                   // voxel edge length, metres (> 0)
+  NearbyType nearby = NearbyType::kNearby19;  // neighbourhood searched by GetClosest
+  size_t max_voxels = 200000;                // LRU capacity (voxels); bounds memory
+  size_t max_points_per_voxel = 10;          // further points into a full voxel are ignored
+  // A point closer than this to a point already in its voxel is not stored: re-observations of a
+  // surface would otherwise fill voxels with near-duplicates. 0 stores every point (tests).
+  double min_point_distance = 0.1;
+};
+
+// --- options of hypothesis_search.hpp (LiDAR-only registration) ---------------------------------
+struct LidarOnlyOptions {
+  // Fit (ScoreFit: share of the sample points near the map that lie within fit_gate of its
+  // planes, after the coarse alignment) at which a guess is kept without trying further ones.
+  double good_fit = 0.8;
+  // ... or at least this share of the median fit of the last 10 scans, if that is lower: in kPpf
+  // a right pose fits less (0.74 median on balm_realworld_lidar, kNN 0.95: covered skeleton
+  // points meet the sparse scattered map at plane borders), and an absolute bar made it try every
+  // guess on almost every scan (149 of 177, 140 ms a scan instead of 26).
+  double good_fit_relative = 0.95;
+  // Best fit below this: the scan is registered anyway, but reported Status::kDegenerate with
+  // the fit in the reason (the pose may be off).
+  double min_fit = 0.5;
+  double fit_gate = 0.1;             // m
+  int coarse_iterations = 10;        // iterations of each guess's coarse alignment
+  double coarse_max_residual = 1.0;  // m; residual gate of the coarse alignment
+  int coarse_points = 2000;          // sample of the downsampled scan used by the coarse stage
+  // Extra guesses when the constant-velocity one fits badly: the model's rotation turned about
+  // the LiDAR's axes by these angles (the turn rate changed), besides "no motion" and the
+  // model's rotation halved and 1.5-fold.
+  double offset_deg = 15.0;  // turns of +-offset and +-2*offset about z, +-offset about x, y
+  // Prior of the fine update about the coarse pose (1 sigma).
+  double prior_rot_std = 0.05;  // rad
+  double prior_pos_std = 0.1;   // m
+  // De-skew again after the coarse alignment, with the motion interpolated between the last
+  // registered pose and the aligned one, then update again (kNN, from that pose): this many
+  // times at most (0 = off), fewer once the pose moves less than redeskew_min_change.
+  // The constant-velocity de-skew extrapolates the previous interval's twist; a hand-held turn
+  // rate changes by tens of deg/s within one scan interval, a de-skew error of degrees. Off by
+  // default: on car-like motion, which the model already de-skews well, the extra updates made
+  // the poses noisier (README, LiDAR-only); 2 for a hand-held sensor.
+  int redeskew_iterations = 0;
+  double redeskew_min_change = 0.002;  // rad and m
+};
+
+// --- options of imu_init.hpp (static and moving start) ------------------------------------------
+struct ImuInitOptions {
+  double duration_s = 1.0;    // static time needed
+  int min_samples = 20;       // and at least this many samples
+  double max_acc_std = 0.3;   // m/s^2 (after unit scaling); above: "moving", restart
+  double max_gyro_std = 0.05; // rad/s; above: "moving", restart
+  double acc_scale = 0.0;     // multiply raw accelerometer readings; 0 = detect (1 or 9.80665)
+  double gravity = 0.0;       // gravity magnitude m/s^2; 0 = use the measured norm
+  // A steady motion has no spread and still is not rest: a constant turn shows as a gyro mean far
+  // above any plausible bias (taking it for one bends every later heading), and an acceleration
+  // or the centripetal part of a fast turn as an accelerometer norm off gravity (taking it for
+  // gravity tilts the world). Checked against `gravity` (or 9.80665 if that is 0).
+  double max_gyro_bias = 0.05;      // rad/s (~3 deg/s: above MEMS turn-on biases)
+  double max_gravity_error = 0.3;   // m/s^2 between the mean accelerometer norm and gravity
+  // Moving start (moving_start.hpp, run by the facade): when a window is refused for motion,
+  // gravity, velocity and gyro bias are estimated from moving_start_window_s of scans registered
+  // without the IMU meanwhile and the IMU, instead of waiting for rest.
+  bool moving_start = true;
+  double moving_start_window_s = 1.5;
+  double moving_start_max_gravity_error = 0.5;  // m/s^2: |g| of the free estimate vs gravity
+};
+
+// --- options of imu_propagation.hpp (noise densities) -------------------------------------------
+// Continuous-time noise densities (white noise: sigma^2 * dt enters the covariance per step).
+struct ImuNoise {
+  double gyro = 0.01;        // rad/s/sqrt(Hz)
+  // m/s^2/sqrt(Hz). MEMS datasheets say ~0.002; the margin covers vibration. 0.1 made the filter
+  // discount the accelerometer so far that bias and gravity separated only slowly after turns.
+  double acc = 0.02;
+  double gyro_bias = 1e-4;   // rad/s^2/sqrt(Hz) random walk
+  double acc_bias = 1e-3;    // m/s^3/sqrt(Hz) random walk
+  // rad/sqrt(s): random walk of the gravity direction in the map frame (0: a fixed direction,
+  // estimated once). Non-zero lets it follow a map that tilts slowly over a long drive.
+  double gravity_dir = 0.0;
+};
+
+// --- options of iekf.hpp (the iterated update) --------------------------------------------------
+struct IekfOptions {
+  int max_iterations = 4;
+  double convergence_rot_rad = 1e-4;  // |dtheta| below this ...
+  double convergence_trans_m = 1e-3;  // ... and |dp| below this: converged
+  // Metres: the noise of one point-to-plane row (weight 1) as the update counts it. Far above one
+  // return's range noise on purpose: a scan's rows are not independent measurements. Neighbouring
+  // rows share their map plane's (or skeleton patch's) fitting error, and every row shares the
+  // scan's de-skew error, so a few thousand rows carry far less information than a few thousand
+  // independent ones. Counted as independent at the range noise, they made the LiDAR so sure of
+  // roll and pitch that each scan overruled the gyro and the accelerometer, and whatever error
+  // the rows shared tilted the world away from gravity (issue 11, worst in fast hand-held PPF
+  // runs); counted at this level the IMU keeps the tilt, and position is still the LiDAR's.
+  double laser_point_std = 0.3;
+  // Radians: the part of a row's noise that grows with the point's range. A far point is matched
+  // to a plane fitted from neighbours as far apart as the beams are there, so its row's error
+  // grows with range and, through its lever arm, turns the map about a horizontal axis (issue 11).
+  // Row variance = laser_point_std^2 + (laser_angular_std * range)^2; 0 = range-independent.
+  // Scaled with laser_point_std (same ratio), so near and far rows keep their relative weights.
+  double laser_angular_std = 0.05;
+  // Metres; from the second iteration on, rows whose residual at the current estimate exceeds
+  // this are dropped (0 = off). The providers' own gates must be wide enough for the prediction's
+  // error (a fast turn, a bumpy start), but at those widths wrong associations (a road point
+  // matched to a kerb, a facade to its neighbour) pass at full weight, and they are not symmetric
+  // about the vehicle: they turn the map away from gravity. Once the first iteration has brought
+  // the estimate near, true matches sit within a few laser sigmas, and only they shape the
+  // posterior. Not while the map is young: built from the static start's few rings, it fits
+  // planes whose true matches lie farther out while the platform first moves away.
+  double refined_gate = 0.1;
+  double refined_gate_after_s = 3.0;  // seconds after the map's first scan
+  int min_rows = 20;                  // fewer rows: skip the update, keep the prediction
+  // J^T J eigenvalue (points) per direction below which the direction is degenerate. 10 rows of
+  // 3 cm noise still pin it to ~1 cm per scan; 30 (the first default) threw that away: PPF on the
+  // 60 s hand-held indoor VLP-16 corridor (the sandwich layer discards door-frame points) was
+  // degenerate along the corridor in 285 of 590 scans, APE 98 mm; with 10: 5 scans, 17 mm. kNN
+  // there: 13.3 mm either way.
+  double degeneracy_min_eig_translation = 10.0;
+  double degeneracy_min_eig_rotation = 300.0;  // J^T J eigenvalue (points * m^2)
+  // Metres from the LiDAR beyond which points give no residual (0 = no limit); they are still
+  // mapped. Far rows fit planes to sparse, grazing returns and their errors act through long
+  // lever arms: on the simulated drives they tilted the map away from gravity (issue 11's note).
+  double residual_max_range = 0.0;
+};
+
+// --- options of knn_residual.hpp (kNN point-to-plane rows) --------------------------------------
+struct KnnOptions {
+  int k = 5;                          // neighbours per point
+  double max_neighbor_distance = 1.0; // metres; farther neighbours do not count
+  double plane_threshold = 0.1;       // metres; every neighbour within this of the fitted plane
+  // Metres; if > 0, neighbours must also spread at least this much (std) across their main
+  // direction. Neighbours along one scan ring are nearly collinear and their plane normal is
+  // poorly defined. Off by default: with 0.5 m voxels it also removes most floor rows of a
+  // 16-beam LiDAR (z then rests on the IMU alone); it pays off with finer voxels (0.25 m).
+  double min_plane_spread = 0.0;
+  // Metres; larger residuals are outliers. Wide enough for the prediction's error; the IEKF's
+  // refined gate (IekfOptions::refined_gate) narrows it once the estimate is near.
+  double max_residual = 0.5;
+  int num_threads = 0;                // 0 = OpenMP default
+};
+
+// --- the core ------------------------------------------------------------------------------------
 enum class Mode { kKnn, kPpf };
 
 // Where the prediction comes from (lio_ppf.hpp, "LiDAR-only"). kLio: the IMU (static

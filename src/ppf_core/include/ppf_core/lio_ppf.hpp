@@ -96,21 +96,24 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+// The public face only: the stages (lio/, ppf/) are the implementation's.
 #include "ppf_core/cloud_view.hpp"
 #include "ppf_core/config.hpp"
-#include "ppf_core/lio/iekf.hpp"
-#include "ppf_core/lio/imu_init.hpp"
-#include "ppf_core/lio/imu_propagation.hpp"
 #include "ppf_core/imu_sample.hpp"
-#include "ppf_core/lio/knn_residual.hpp"
 #include "ppf_core/log.hpp"
-#include "ppf_core/ppf_config.hpp"
-#include "ppf_core/lio/residual_provider.hpp"
-#include "ppf_core/ppf/skeleton_window.hpp"
-#include "ppf_core/lio/time_field.hpp"
-#include "ppf_core/lio/voxel_map.hpp"
+#include "ppf_core/result_types.hpp"
 
 namespace ppf {
+
+class ResidualProvider;  // lio/residual_provider.hpp, for the extension points below
+class ScanSplitter;
+
+// The kNN map's size (the map itself is the core's).
+struct MapStats {
+  size_t points = 0;           // stored points
+  size_t voxels = 0;           // occupied voxels
+  size_t capacity_points = 0;  // the bound: max_voxels * max_points_per_voxel
+};
 
 enum class Status {
   kOk,            // pose estimated from this scan
@@ -239,7 +242,7 @@ class LioPpf {
   void Reset();  // forget state, map and queues; initialization starts over
 
   const Config& config() const;
-  const VoxelMap& map() const;
+  MapStats map_stats() const;
   const TimeFieldInfo& time_field_info() const;
   bool initialized() const;
   bool lidar_only() const;  // LiDAR-only mode decided (imu.mode none, or auto without IMU)

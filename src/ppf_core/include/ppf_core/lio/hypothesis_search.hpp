@@ -18,45 +18,12 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "ppf_core/config.hpp"  // this stage's options
 #include "ppf_core/lio/iekf.hpp"
 #include "ppf_core/lio/knn_residual.hpp"
 #include "ppf_core/lio/residual_provider.hpp"
 
 namespace ppf {
-
-struct LidarOnlyOptions {
-  // Fit (ScoreFit: share of the sample points near the map that lie within fit_gate of its
-  // planes, after the coarse alignment) at which a guess is kept without trying further ones.
-  double good_fit = 0.8;
-  // ... or at least this share of the median fit of the last 10 scans, if that is lower: in kPpf
-  // a right pose fits less (0.74 median on balm_realworld_lidar, kNN 0.95: covered skeleton
-  // points meet the sparse scattered map at plane borders), and an absolute bar made it try every
-  // guess on almost every scan (149 of 177, 140 ms a scan instead of 26).
-  double good_fit_relative = 0.95;
-  // Best fit below this: the scan is registered anyway, but reported Status::kDegenerate with
-  // the fit in the reason (the pose may be off).
-  double min_fit = 0.5;
-  double fit_gate = 0.1;             // m
-  int coarse_iterations = 10;        // iterations of each guess's coarse alignment
-  double coarse_max_residual = 1.0;  // m; residual gate of the coarse alignment
-  int coarse_points = 2000;          // sample of the downsampled scan used by the coarse stage
-  // Extra guesses when the constant-velocity one fits badly: the model's rotation turned about
-  // the LiDAR's axes by these angles (the turn rate changed), besides "no motion" and the
-  // model's rotation halved and 1.5-fold.
-  double offset_deg = 15.0;  // turns of +-offset and +-2*offset about z, +-offset about x, y
-  // Prior of the fine update about the coarse pose (1 sigma).
-  double prior_rot_std = 0.05;  // rad
-  double prior_pos_std = 0.1;   // m
-  // De-skew again after the coarse alignment, with the motion interpolated between the last
-  // registered pose and the aligned one, then update again (kNN, from that pose): this many
-  // times at most (0 = off), fewer once the pose moves less than redeskew_min_change.
-  // The constant-velocity de-skew extrapolates the previous interval's twist; a hand-held turn
-  // rate changes by tens of deg/s within one scan interval, a de-skew error of degrees. Off by
-  // default: on car-like motion, which the model already de-skews well, the extra updates made
-  // the poses noisier (README, LiDAR-only); 2 for a hand-held sensor.
-  int redeskew_iterations = 0;
-  double redeskew_min_change = 0.002;  // rad and m
-};
 
 struct MotionHypothesis {
   std::string name;

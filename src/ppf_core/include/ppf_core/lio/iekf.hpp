@@ -20,53 +20,11 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "ppf_core/config.hpp"  // this stage's options
 #include "ppf_core/lio/imu_propagation.hpp"
 #include "ppf_core/lio/residual_provider.hpp"
 
 namespace ppf {
-
-struct IekfOptions {
-  int max_iterations = 4;
-  double convergence_rot_rad = 1e-4;  // |dtheta| below this ...
-  double convergence_trans_m = 1e-3;  // ... and |dp| below this: converged
-  // Metres: the noise of one point-to-plane row (weight 1) as the update counts it. Far above one
-  // return's range noise on purpose: a scan's rows are not independent measurements. Neighbouring
-  // rows share their map plane's (or skeleton patch's) fitting error, and every row shares the
-  // scan's de-skew error, so a few thousand rows carry far less information than a few thousand
-  // independent ones. Counted as independent at the range noise, they made the LiDAR so sure of
-  // roll and pitch that each scan overruled the gyro and the accelerometer, and whatever error
-  // the rows shared tilted the world away from gravity (issue 11, worst in fast hand-held PPF
-  // runs); counted at this level the IMU keeps the tilt, and position is still the LiDAR's.
-  double laser_point_std = 0.3;
-  // Radians: the part of a row's noise that grows with the point's range. A far point is matched
-  // to a plane fitted from neighbours as far apart as the beams are there, so its row's error
-  // grows with range and, through its lever arm, turns the map about a horizontal axis (issue 11).
-  // Row variance = laser_point_std^2 + (laser_angular_std * range)^2; 0 = range-independent.
-  // Scaled with laser_point_std (same ratio), so near and far rows keep their relative weights.
-  double laser_angular_std = 0.05;
-  // Metres; from the second iteration on, rows whose residual at the current estimate exceeds
-  // this are dropped (0 = off). The providers' own gates must be wide enough for the prediction's
-  // error (a fast turn, a bumpy start), but at those widths wrong associations (a road point
-  // matched to a kerb, a facade to its neighbour) pass at full weight, and they are not symmetric
-  // about the vehicle: they turn the map away from gravity. Once the first iteration has brought
-  // the estimate near, true matches sit within a few laser sigmas, and only they shape the
-  // posterior. Not while the map is young: built from the static start's few rings, it fits
-  // planes whose true matches lie farther out while the platform first moves away.
-  double refined_gate = 0.1;
-  double refined_gate_after_s = 3.0;  // seconds after the map's first scan
-  int min_rows = 20;                  // fewer rows: skip the update, keep the prediction
-  // J^T J eigenvalue (points) per direction below which the direction is degenerate. 10 rows of
-  // 3 cm noise still pin it to ~1 cm per scan; 30 (the first default) threw that away: PPF on the
-  // 60 s hand-held indoor VLP-16 corridor (the sandwich layer discards door-frame points) was
-  // degenerate along the corridor in 285 of 590 scans, APE 98 mm; with 10: 5 scans, 17 mm. kNN
-  // there: 13.3 mm either way.
-  double degeneracy_min_eig_translation = 10.0;
-  double degeneracy_min_eig_rotation = 300.0;  // J^T J eigenvalue (points * m^2)
-  // Metres from the LiDAR beyond which points give no residual (0 = no limit); they are still
-  // mapped. Far rows fit planes to sparse, grazing returns and their errors act through long
-  // lever arms: on the simulated drives they tilted the map away from gravity (issue 11's note).
-  double residual_max_range = 0.0;
-};
 
 struct IekfReport {
   int iterations = 0;

@@ -22,30 +22,10 @@
 
 #include <Eigen/Core>
 
+#include "ppf_core/config.hpp"  // this stage's options
 #include "ppf_core/imu_sample.hpp"
 
 namespace ppf {
-
-struct ImuInitOptions {
-  double duration_s = 1.0;    // static time needed
-  int min_samples = 20;       // and at least this many samples
-  double max_acc_std = 0.3;   // m/s^2 (after unit scaling); above: "moving", restart
-  double max_gyro_std = 0.05; // rad/s; above: "moving", restart
-  double acc_scale = 0.0;     // multiply raw accelerometer readings; 0 = detect (1 or 9.80665)
-  double gravity = 0.0;       // gravity magnitude m/s^2; 0 = use the measured norm
-  // A steady motion has no spread and still is not rest: a constant turn shows as a gyro mean far
-  // above any plausible bias (taking it for one bends every later heading), and an acceleration
-  // or the centripetal part of a fast turn as an accelerometer norm off gravity (taking it for
-  // gravity tilts the world). Checked against `gravity` (or 9.80665 if that is 0).
-  double max_gyro_bias = 0.05;      // rad/s (~3 deg/s: above MEMS turn-on biases)
-  double max_gravity_error = 0.3;   // m/s^2 between the mean accelerometer norm and gravity
-  // Moving start (moving_start.hpp, run by the facade): when a window is refused for motion,
-  // gravity, velocity and gyro bias are estimated from moving_start_window_s of scans registered
-  // without the IMU meanwhile and the IMU, instead of waiting for rest.
-  bool moving_start = true;
-  double moving_start_window_s = 1.5;
-  double moving_start_max_gravity_error = 0.5;  // m/s^2: |g| of the free estimate vs gravity
-};
 
 class ImuInitializer {
  public:

@@ -19,13 +19,11 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "ppf_core/config.hpp"  // this stage's options
 #include "ppf_core/imu_sample.hpp"
+#include "ppf_core/result_types.hpp"
 
 namespace ppf {
-
-constexpr int kStateDim = 17;
-using StateCov = Eigen::Matrix<double, kStateDim, kStateDim>;
-enum StateIndex { kRot = 0, kPos = 3, kVel = 6, kBg = 9, kBa = 12, kGrav = 15 };
 
 struct NavState {
   double stamp_s = 0.0;
@@ -43,19 +41,6 @@ struct NavState {
     T.translation() = p_world_imu;
     return T;
   }
-};
-
-// Continuous-time noise densities (white noise: sigma^2 * dt enters the covariance per step).
-struct ImuNoise {
-  double gyro = 0.01;        // rad/s/sqrt(Hz)
-  // m/s^2/sqrt(Hz). MEMS datasheets say ~0.002; the margin covers vibration. 0.1 made the filter
-  // discount the accelerometer so far that bias and gravity separated only slowly after turns.
-  double acc = 0.02;
-  double gyro_bias = 1e-4;   // rad/s^2/sqrt(Hz) random walk
-  double acc_bias = 1e-3;    // m/s^3/sqrt(Hz) random walk
-  // rad/sqrt(s): random walk of the gravity direction in the map frame (0: a fixed direction,
-  // estimated once). Non-zero lets it follow a map that tilts slowly over a long drive.
-  double gravity_dir = 0.0;
 };
 
 // Pose of the IMU at an integration knot, plus the constant (bias-corrected) body rate and world

@@ -7,25 +7,11 @@
 #include <string>
 #include <vector>
 
+#include "ppf_core/config.hpp"  // this stage's options
 #include "ppf_core/lio/residual_provider.hpp"
 #include "ppf_core/lio/voxel_map.hpp"
 
 namespace ppf {
-
-struct KnnOptions {
-  int k = 5;                          // neighbours per point
-  double max_neighbor_distance = 1.0; // metres; farther neighbours do not count
-  double plane_threshold = 0.1;       // metres; every neighbour within this of the fitted plane
-  // Metres; if > 0, neighbours must also spread at least this much (std) across their main
-  // direction. Neighbours along one scan ring are nearly collinear and their plane normal is
-  // poorly defined. Off by default: with 0.5 m voxels it also removes most floor rows of a
-  // 16-beam LiDAR (z then rests on the IMU alone); it pays off with finer voxels (0.25 m).
-  double min_plane_spread = 0.0;
-  // Metres; larger residuals are outliers. Wide enough for the prediction's error; the IEKF's
-  // refined gate (IekfOptions::refined_gate) narrows it once the estimate is near.
-  double max_residual = 0.5;
-  int num_threads = 0;                // 0 = OpenMP default
-};
 
 // Least-squares plane n.x + d = 0 through `pts` (>= 3). Returns false if the points do not span a
 // plane (std across their main direction below min_spread) or if a point is farther than

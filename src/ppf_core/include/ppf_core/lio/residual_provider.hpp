@@ -18,15 +18,11 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "ppf_core/result_types.hpp"
+
 namespace ppf {
 
 class VoxelMap;
-
-enum class PointLabel : uint8_t {
-  kScattered = 0,  // Theta: kNN residual, inserted into the map
-  kSkeleton = 1,   // Omega: residual against pre-fitted planes, not inserted
-  kDiscarded = 2,  // semi-inliers of the sandwich layer: no residual, not inserted
-};
 
 // One point-to-plane residual row: r = n_world . (T_world_lidar * point_lidar) + offset.
 struct PointPlaneRow {

@@ -25,23 +25,11 @@
 #include <Eigen/Core>
 
 #include "ppf_core/cloud_view.hpp"
+#include "ppf_core/config.hpp"  // this stage's options
 #include "ppf_core/log.hpp"
+#include "ppf_core/result_types.hpp"
 
 namespace ppf {
-
-enum class StampPosition { kAuto, kStart, kEnd };
-enum class TimeReference { kAuto, kRelative, kAbsolute };
-enum class NoTimePolicy { kNoDeskew, kAzimuth };
-
-struct TimeFieldOptions {
-  std::string field_name;        // "" = detect among t, time, timestamp, time_stamp, offset_time
-  double unit_scale_s = 0.0;     // seconds per raw unit; 0 = by type (uint -> 1e-9, float -> 1)
-  TimeReference reference = TimeReference::kAuto;
-  StampPosition stamp_position = StampPosition::kAuto;
-  NoTimePolicy no_time_policy = NoTimePolicy::kAzimuth;
-  double scan_period_s = 0.1;    // spin period, used only by the azimuth estimate
-  bool azimuth_clockwise = true; // Velodyne/Ouster spin clockwise seen from above
-};
 
 // One decoded point in the LiDAR frame with its absolute time.
 struct TimedPoint {
@@ -59,19 +47,6 @@ struct DecodedScan {
   bool has_time_field = false;
   bool times_estimated = false;    // azimuth estimate used
   std::string note;                // e.g. "no time field: times estimated from azimuth"
-};
-
-// What detection concluded; stable after the first scan.
-struct TimeFieldInfo {
-  bool detected = false;
-  bool present = false;
-  std::string name;
-  FieldType type = FieldType::kFloat32;
-  uint32_t offset = 0;
-  double unit_scale_s = 1.0;
-  bool absolute = false;
-  bool stamp_at_end = false;
-  std::string Describe() const;
 };
 
 class TimeFieldDecoder {

@@ -26,19 +26,9 @@
 
 #include <Eigen/Core>
 
+#include "ppf_core/config.hpp"  // this stage's options
+
 namespace ppf {
-
-enum class NearbyType { kCenter = 1, kNearby7 = 7, kNearby19 = 19, kNearby27 = 27 };
-
-struct VoxelMapOptions {
-  double resolution = 0.5;                   // voxel edge length, metres (> 0)
-  NearbyType nearby = NearbyType::kNearby19;  // neighbourhood searched by GetClosest
-  size_t max_voxels = 200000;                // LRU capacity (voxels); bounds memory
-  size_t max_points_per_voxel = 10;          // further points into a full voxel are ignored
-  // A point closer than this to a point already in its voxel is not stored: re-observations of a
-  // surface would otherwise fill voxels with near-duplicates. 0 stores every point (tests).
-  double min_point_distance = 0.1;
-};
 
 struct VoxelKey {
   int32_t x = 0, y = 0, z = 0;

@@ -9,33 +9,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "ppf_core/result_types.hpp"
+
 namespace ppf {
-
-struct Plane {
-  Eigen::Vector3d n = Eigen::Vector3d::UnitZ();  // unit normal
-  double d = 0.0;                                // offset: n.p + d = 0 on the plane
-
-  Eigen::Vector4d Coefficients() const { return Eigen::Vector4d(n.x(), n.y(), n.z(), d); }
-
-  // Signed point-to-plane distance (metres, positive on the side n points to).
-  double SignedDistance(const Eigen::Vector3d& p) const { return n.dot(p) + d; }
-  float SignedDistance(const Eigen::Vector3f& p) const {
-    return static_cast<float>(n.x()) * p.x() + static_cast<float>(n.y()) * p.y() +
-           static_cast<float>(n.z()) * p.z() + static_cast<float>(d);
-  }
-  double Distance(const Eigen::Vector3d& p) const;
-
-  // The same plane with the opposite normal (n, d) -> (-n, -d).
-  Plane Flipped() const { return Plane{-n, -d}; }
-
-  // Normalises f = [a b c e] to a unit normal. Empty for a (near-)zero or non-finite normal.
-  static std::optional<Plane> FromCoefficients(const Eigen::Vector4d& f);
-
-  // Plane through three points. Empty if |(p1-p0)x(p2-p0)| < min_cross_norm (collinear or
-  // coincident samples): the normal would be numerically meaningless or a division by zero.
-  static std::optional<Plane> FromPoints(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
-                                         const Eigen::Vector3d& p2, double min_cross_norm);
-};
 
 // Theorem 1: the plane expressed in frame `to`, given T_to_from (p_to = T_to_from * p_from).
 // Closed form of f_to = (T_to_from^-1)^T f_from for a rigid T: n_to = R n, d_to = d - n_to.t.

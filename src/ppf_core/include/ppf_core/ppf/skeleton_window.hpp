@@ -21,21 +21,9 @@
 #include "ppf_core/ppf/plane.hpp"
 #include "ppf_core/ppf/plane_prefitter.hpp"
 #include "ppf_core/ppf_config.hpp"
+#include "ppf_core/result_types.hpp"
 
 namespace ppf {
-
-struct SkeletonPlane {
-  int64_t track_id = -1;
-  Plane plane;                                         // world frame
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  // world, of the latest strict inliers
-  int num_inliers = 0;                                 // strict inliers at the latest fit
-  // World-frame scatter of the latest fit's strict inliers about `centroid` (extent, thickness).
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  bool incremental = false;  // this scan's fit came from the IMU-predicted guess of this track
-  int age = 0;           // scans since the track was created (0 in its first scan)
-  int hits = 0;          // scans in which the plane was fitted
-  int missed_scans = 0;  // consecutive scans without a fit
-};
 
 class SkeletonWindow {
  public:

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+#include "ppf_core/lio/residual_provider.hpp"
 #include "ppf_core/lio_ppf.hpp"
 #include "synthetic.hpp"
 

@@ -33,13 +33,12 @@ LioPpf::Impl::Impl(const Config& c) : config(c), map(c.map) {
   init = ImuInitializer(config.init);
   map = VoxelMap(config.map);
   knn = std::make_shared<KnnResidualProvider>(config.knn);
-  // PPF: the paper's plane pre-fitting + skeleton tracking is the default kPpf splitter.
+  // PPF: the paper's plane pre-fitting + skeleton tracking splits every kPpf scan.
   if (config.mode == Mode::kPpf) {
     if (config.num_threads > 0 && config.ppf.num_threads == 0) {
       config.ppf.num_threads = config.num_threads;
     }
-    ppf_tracker = std::make_shared<SkeletonTracker>(config.ppf);
-    splitter = ppf_tracker;
+    tracker = std::make_unique<SkeletonTracker>(config.ppf);
   }
 }
 
@@ -65,8 +64,7 @@ void LioPpf::Impl::ResetFilter(const std::string& reason) {
   imu_back = false;
   late_imu = false;
   world_is_map = false;
-  if (splitter) splitter->Reset();
-  for (auto& p : extra) p->Reset();
+  if (tracker) tracker->Reset();
   knn->Reset();
   scans_since_prune = 0;
   // LiDAR-only needs no initialization: the next scan starts the map again.
@@ -325,12 +323,6 @@ ScanResult LioPpf::ProcessScan(const CloudView& cloud) {
   return results.back();
 }
 
-void LioPpf::SetScanSplitter(std::shared_ptr<ScanSplitter> splitter) {
-  impl_->splitter = std::move(splitter);
-}
-void LioPpf::AddResidualProvider(std::shared_ptr<ResidualProvider> provider) {
-  if (provider) impl_->extra.push_back(std::move(provider));
-}
 void LioPpf::Reset() {
   impl_->scans.clear();
   impl_->pending.clear();

@@ -117,9 +117,7 @@ struct LioPpf::Impl {
   ImuInitializer init;
   VoxelMap map;
   std::shared_ptr<KnnResidualProvider> knn;
-  std::shared_ptr<ScanSplitter> splitter;
-  std::shared_ptr<SkeletonTracker> ppf_tracker;  // PPF: built-in kPpf splitter (may be replaced)
-  std::vector<std::shared_ptr<ResidualProvider>> extra;
+  std::unique_ptr<SkeletonTracker> tracker;  // PPF: kPpf only
   std::deque<ImuSample> imu;
   std::deque<QueuedScan> scans;
   std::vector<ScanResult> pending;

@@ -170,8 +170,7 @@ void LioPpf::Impl::ClearMovingInit() {
   map.clear();
   motion.Reset();
   recent_fits.clear();
-  if (splitter) splitter->Reset();
-  for (auto& p : extra) p->Reset();
+  if (tracker) tracker->Reset();
   knn->Reset();
   scans_since_prune = 0;
   last_scan_end = -std::numeric_limits<double>::infinity();

@@ -33,9 +33,6 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
     ResumeLio(&r);
   }
   Append(&r.reason, scan.note);
-  if (config.mode == Mode::kPpf && !splitter) {
-    Append(&r.reason, "ppf mode requested but no ScanSplitter installed: running kNN");
-  }
 
   std::vector<TimedPoint> pts;
   Preprocess(q, &pts, &r);
@@ -199,9 +196,9 @@ void LioPpf::Impl::StartMap(bool lidar, double t_end, ScanResult* r) {
 
 // The split into skeleton and scattered points (kPpf) and the count of each label.
 void LioPpf::Impl::SplitScan(ScanResult* r) {
-  if (config.mode == Mode::kPpf && splitter) {
+  if (tracker) {
     const auto t0 = Clock::now();
-    splitter->Split(&frame);
+    tracker->Split(&frame);
     frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
     r->timings.ppf = MsSince(t0);
   }
@@ -275,13 +272,7 @@ IekfReport LioPpf::Impl::Register(double t_end, Eigen::Isometry3d* T_world_lidar
                                   ScanResult* r) {
   std::vector<ResidualProvider*> providers;
   providers.push_back(knn.get());
-  if (config.mode == Mode::kPpf) {
-    // PPF: the built-in tracker's skeleton residuals, only while it is the installed splitter.
-    if (ppf_tracker && splitter == ppf_tracker) {
-      providers.push_back(ppf_tracker->residual_provider().get());
-    }
-    for (auto& p : extra) providers.push_back(p.get());
-  }
+  if (tracker) providers.push_back(tracker->residual_provider().get());  // PPF: skeleton rows
   for (ResidualProvider* p : providers) p->BeginScan(frame);
   IekfOptions iekf = config.iekf;
   if (t_end - map_init_stamp_s < iekf.refined_gate_after_s) iekf.refined_gate = 0.0;
@@ -299,13 +290,11 @@ IekfReport LioPpf::Impl::Register(double t_end, Eigen::Isometry3d* T_world_lidar
       r->skeleton_residuals += static_cast<size_t>(rep.rows_per_provider[i]);
   }
   const Eigen::Isometry3d T_world_lidar = state.T_world_imu() * config.T_imu_lidar;
-  if (config.mode == Mode::kPpf && splitter) {
+  if (tracker) {
     const auto t0 = Clock::now();
-    splitter->Finish(frame, T_world_lidar);
-    if (ppf_tracker && splitter == ppf_tracker) {
-      r->skeleton_planes = ppf_tracker->window().planes();  // map frame until FillState
-      r->skeleton_patches = ppf_tracker->patch_map().num_patches();
-    }
+    tracker->Finish(frame, T_world_lidar);
+    r->skeleton_planes = tracker->window().planes();  // map frame until FillState
+    r->skeleton_patches = tracker->patch_map().num_patches();
     r->timings.ppf += MsSince(t0);
   }
   for (ResidualProvider* p : providers) p->EndScan(T_world_lidar);

@@ -71,6 +71,34 @@ TEST(Iekf, ConvergesToKnownTransformInRoom) {
   EXPECT_LT(s.P(kPos, kPos), 0.01 * P0(kPos, kPos));
 }
 
+// Matches are re-established at every iteration: each provider is asked for its rows once per
+// iteration, at that iteration's estimate (the first at the prior, the later ones moving).
+TEST(Iekf, EveryProviderIsAskedAtEveryIterationsEstimate) {
+  class Recording : public ResidualProvider {
+   public:
+    std::string Name() const override { return "recording"; }
+    void BeginScan(const ScanFrame&) override {}
+    void ComputeRows(const Eigen::Isometry3d& T, std::vector<PointPlaneRow>*) override {
+      poses.push_back(T.translation());
+    }
+    std::vector<Eigen::Vector3d> poses;
+  };
+  Fixture f;
+  Build(test::MakeRoomScene(), &f);
+  KnnResidualProvider knn;
+  knn.BeginScan(f.frame);
+  Recording rec;
+  const Eigen::Vector3d dp(0.15, -0.10, 0.05);
+  NavState s = OffsetPrior(dp, 2.0 * test::kPi / 180.0);
+  const IekfReport rep = IekfUpdate(IekfOptions(), Eigen::Isometry3d::Identity(), {&knn, &rec}, &s);
+  ASSERT_GE(rep.iterations, 2);
+  ASSERT_EQ(static_cast<int>(rec.poses.size()), rep.iterations);
+  EXPECT_LT((rec.poses.front() - dp).norm(), 1e-12);              // the prior
+  EXPECT_GT((rec.poses[1] - dp).norm(), 0.05);                      // moved by the update
+  ASSERT_EQ(rep.rows_per_provider.size(), 2u);
+  EXPECT_EQ(rep.rows_per_provider[1], 0);
+}
+
 // residual_max_range: only points within it give rows (they all still exist in the frame).
 TEST(KnnResidual, FarPointsGiveNoRowsBeyondResidualMaxRange) {
   Fixture f;

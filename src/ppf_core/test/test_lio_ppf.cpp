@@ -1,11 +1,10 @@
-// Facade behaviour: statuses (initializing, rejected, reset), counts, and the kPpf extension
-// point (splitter labels decide residual sources and map insertion).
+// Facade behaviour: statuses (initializing, rejected, reset), counts, and kPpf's labels deciding
+// residual sources and map insertion.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
-#include "ppf_core/lio/residual_provider.hpp"
 #include "ppf_core/lio_ppf.hpp"
 #include "synthetic.hpp"
 
@@ -270,85 +269,45 @@ TEST(LioPpf, CorridorIsReportedDegenerate) {
   EXPECT_LT(r.T_world_imu.translation().norm(), 0.01);  // the IMU (static) keeps x in place
 }
 
-// kPpf extension point: a splitter marking every other point as skeleton and a provider that
-// records how it is called.
-class EveryOther : public ScanSplitter {
- public:
-  std::string Name() const override { return "every_other"; }
-  void Split(ScanFrame* f) override {
-    for (size_t i = 0; i < f->labels.size(); ++i) {
-      f->labels[i] = (i % 2) ? PointLabel::kSkeleton : PointLabel::kScattered;
-    }
-    if (!f->labels.empty()) f->labels[0] = PointLabel::kDiscarded;
-    ++splits;
-  }
-  void Finish(const ScanFrame&, const Eigen::Isometry3d&) override { ++finishes; }
-  int splits = 0, finishes = 0;
-};
-
-class CountingProvider : public ResidualProvider {
- public:
-  std::string Name() const override { return "counting"; }
-  void BeginScan(const ScanFrame& f) override {
-    frame = &f;
-    ++begins;
-  }
-  void ComputeRows(const Eigen::Isometry3d&, std::vector<PointPlaneRow>* rows) override {
-    ++calls;
-    // One row per skeleton point against the floor (z = -2), as a plane provider would.
-    for (size_t i = 0; i < frame->points_lidar.size(); ++i) {
-      if (frame->labels[i] == PointLabel::kSkeleton && frame->points_lidar[i].z() < -1.9f) {
-        PointPlaneRow r;
-        r.point_lidar = frame->points_lidar[i].cast<double>();
-        r.normal_world = Eigen::Vector3d::UnitZ();
-        r.offset = 2.0;
-        rows->push_back(r);
-      }
-    }
-  }
-  void EndScan(const Eigen::Isometry3d&) override { ++ends; }
-  const ScanFrame* frame = nullptr;
-  int begins = 0, calls = 0, ends = 0;
-};
-
-TEST(LioPpf, PpfModeUsesSplitterLabelsForResidualsAndMap) {
+// kPpf: the skeleton tracker's labels decide where each point's residual comes from and what
+// enters the map (only kScattered points do).
+TEST(LioPpf, PpfModeLabelsDecideResidualSourcesAndMapInsertion) {
   Config config;
   config.mode = Mode::kPpf;
   LioPpf lio(config);
-  auto splitter = std::make_shared<EveryOther>();
-  auto provider = std::make_shared<CountingProvider>();
-  lio.SetScanSplitter(splitter);
-  lio.AddResidualProvider(provider);
-  FeedStill(&lio, 0.0, 1.3);
+  FeedStill(&lio, 0.0, 1.4);
   const test::CloudBuffer s1 = StillScan(1.0);
   ScanResult r = lio.ProcessScan(s1.view);  // map initialization: no split yet
   ASSERT_EQ(r.status, Status::kOk);
-  const size_t map_before = lio.map_stats().points;
+  EXPECT_EQ(r.skeleton_points, 0u);
   const test::CloudBuffer s2 = StillScan(1.1);
-  r = lio.ProcessScan(s2.view);
+  r = lio.ProcessScan(s2.view);  // its planes start the window: no skeleton rows yet
   ASSERT_TRUE(r.pose_valid) << r.reason;
-  EXPECT_EQ(splitter->splits, 1);
-  EXPECT_EQ(splitter->finishes, 1);
-  EXPECT_EQ(provider->begins, 1);
-  EXPECT_EQ(provider->ends, 1);
-  EXPECT_EQ(provider->calls, r.iterations);  // asked again every iteration
+  EXPECT_EQ(r.skeleton_residuals, 0u);
+  EXPECT_FALSE(r.skeleton_planes.empty());
+  const size_t map_before = lio.map_stats().points;
+  const test::CloudBuffer s3 = StillScan(1.2);
+  r = lio.ProcessScan(s3.view);
+  ASSERT_TRUE(r.pose_valid) << r.reason;
+  EXPECT_GT(r.skeleton_points, r.downsampled_points / 4) << "the room's walls are skeleton planes";
+  EXPECT_GT(r.scattered_points, 0u);
+  EXPECT_FALSE(r.skeleton_planes.empty());
   EXPECT_EQ(r.skeleton_points + r.scattered_points + r.discarded_points, r.downsampled_points);
-  EXPECT_EQ(r.discarded_points, 1u);
   EXPECT_EQ(r.map_inserted, r.scattered_points);  // only map points enter the map
   EXPECT_GT(r.skeleton_residuals, 0u);
   EXPECT_LE(r.knn_residuals, r.scattered_points);
   EXPECT_LE(lio.map_stats().points, map_before + r.scattered_points);
-}
+  EXPECT_LT(r.T_world_lidar.translation().norm(), 0.01);
 
-TEST(LioPpf, PpfModeWithoutSplitterSaysSo) {
-  Config config;
-  config.mode = Mode::kPpf;
-  LioPpf lio(config);
-  lio.SetScanSplitter(nullptr);  // PPF: kPpf installs the skeleton tracker by default
-  FeedStill(&lio, 0.0, 1.3);
-  const test::CloudBuffer s1 = StillScan(1.0);
-  const ScanResult r = lio.ProcessScan(s1.view);
-  EXPECT_NE(r.reason.find("no ScanSplitter"), std::string::npos) << r.reason;
+  Config knn_config;  // kKnn: no split, every point a map point
+  LioPpf knn(knn_config);
+  FeedStill(&knn, 0.0, 1.3);
+  knn.ProcessScan(s1.view);
+  r = knn.ProcessScan(s2.view);
+  ASSERT_TRUE(r.pose_valid) << r.reason;
+  EXPECT_EQ(r.scattered_points, r.downsampled_points);
+  EXPECT_EQ(r.skeleton_residuals, 0u);
+  EXPECT_TRUE(r.skeleton_planes.empty());
 }
 
 }  // namespace

@@ -80,7 +80,6 @@ void RunPpf(bool incremental) {
   for (const ScanResult& r : run.results) {
     if (!r.pose_valid || r.reason.find("map initialized") != std::string::npos) continue;
     ++registered;
-    EXPECT_EQ(r.reason.find("no ScanSplitter"), std::string::npos) << r.reason;
     EXPECT_EQ(r.skeleton_points + r.scattered_points + r.discarded_points, r.downsampled_points);
     map_rows_ok += r.map_inserted == r.scattered_points;  // only Theta enters the map
     with_skeleton += r.skeleton_points > 0;

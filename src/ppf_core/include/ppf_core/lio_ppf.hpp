@@ -16,18 +16,11 @@
 //               scan; every kept point has its voxel's mean time (preprocess.hpp)
 //   deskew      propagate the IMU to the scan end (midpoint, imu_propagation.hpp) and move every
 //               kept point to the LiDAR pose at the scan END with its own time (deskew.hpp)
-//   ppf         ScanSplitter::Split labels points kSkeleton / kScattered / kDiscarded (kPpf only)
-//   residuals   + update: IEKF (iekf.hpp); every iteration each ResidualProvider returns rows
+//   ppf         the skeleton tracker labels points kSkeleton / kScattered / kDiscarded (kPpf only;
+//               ppf/skeleton_tracker.hpp, parameters Config::ppf)
+//   residuals   + update: IEKF (lio/iekf.hpp); every iteration the kNN rows of the kScattered
+//               points and, in kPpf, the skeleton rows (lio/residual_provider.hpp)
 //   map insert  points labelled kScattered ("map points") go into the kNN VoxelMap
-//
-// EXTENSION POINT (residual_provider.hpp): in Mode::kPpf the plane pre-fitter is installed with
-// SetScanSplitter() and its skeleton residuals with AddResidualProvider(). The built-in kNN provider
-// always handles the kScattered points. If kPpf is configured but no splitter is installed the
-// facade runs as kKnn and says so in ScanResult::reason.
-// PPF default: with Mode::kPpf the facade installs the paper's skeleton tracker
-// (skeleton_tracker.hpp, parameters Config::ppf) and its skeleton residual provider.
-// SetScanSplitter() replaces both (a custom splitter brings its own providers);
-// SetScanSplitter(nullptr) runs kNN only.
 //
 // Initialization (imu_init.hpp): needs Config::init.duration_s (1 s) of static IMU data; scans
 // before that return Status::kInitializing. Motion during that window restarts the collection.
@@ -104,9 +97,6 @@
 #include "ppf_core/result_types.hpp"
 
 namespace ppf {
-
-class ResidualProvider;  // lio/residual_provider.hpp, for the extension points below
-class ScanSplitter;
 
 // The kNN map's size (the map itself is the core's).
 struct MapStats {
@@ -234,10 +224,6 @@ class LioPpf {
 
   // AddScan + Process(true), returning the result of this scan (convenience for tests/tools).
   ScanResult ProcessScan(const CloudView& cloud);
-
-  // Extension points (kPpf): see residual_provider.hpp.
-  void SetScanSplitter(std::shared_ptr<ScanSplitter> splitter);
-  void AddResidualProvider(std::shared_ptr<ResidualProvider> provider);
 
   void Reset();  // forget state, map and queues; initialization starts over
 

@@ -31,7 +31,7 @@ struct EnduranceRow {
   double sim_time = 0;         // s
   double distance = 0;         // m driven (ground truth)
   size_t map_points = 0;       // ScanResult::map_size of the last scan
-  size_t map_voxels = 0;       // LioPpf::map().num_voxels()
+  size_t map_voxels = 0;       // LioPpf::map_stats().voxels
   size_t max_map_points = 0;   // since the start
   size_t patches = 0;          // ScanResult::skeleton_patches (PPF mode's plane patch map)
   double rss_mb = 0;           // VmRSS

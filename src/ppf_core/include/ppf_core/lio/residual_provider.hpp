@@ -1,14 +1,14 @@
-// Extension points of the registration (see lio_ppf.hpp for the pipeline they plug into).
+// The registration's residual sources (see lio_ppf.hpp for the pipeline around them).
 //
 //   AddScan -> decode -> IMU propagate -> de-skew -> downsample
-//           -> ScanSplitter::Split         (labels: skeleton / scattered / discarded)
+//           -> SkeletonTracker::Split      (kPpf: labels skeleton / scattered / discarded)
 //           -> IEKF: every iteration, every ResidualProvider::ComputeRows(current T_world_lidar)
-//           -> ScanSplitter::Finish, ResidualProvider::EndScan   (with the converged pose)
+//           -> SkeletonTracker::Finish, ResidualProvider::EndScan   (with the converged pose)
 //           -> insert points labelled kScattered into the kNN voxel map
 //
-// kKnn mode: no splitter runs, every point is kScattered, the built-in kNN provider makes all rows.
-// kPpf mode: the plane pre-fitter is the ScanSplitter and a skeleton ResidualProvider; the kNN
-// provider still serves the kScattered points, and only those enter the map.
+// kKnn mode: no split, every point is kScattered, the kNN provider (knn_residual.hpp) makes all
+// rows. kPpf mode: the skeleton tracker's provider (skeleton_residual.hpp) makes the skeleton
+// points' rows; the kNN provider still serves the kScattered points, and only those enter the map.
 #pragma once
 
 #include <cstdint>
@@ -47,18 +47,6 @@ struct ScanFrame {
     return !(residual_max_range > 0.0) ||
            p_lidar.squaredNorm() <= residual_max_range * residual_max_range;
   }
-};
-
-// Splits the scan before the update. Runs once per scan (kPpf mode only).
-class ScanSplitter {
- public:
-  virtual ~ScanSplitter() = default;
-  virtual std::string Name() const = 0;
-  // Set frame->labels (pre-filled with kScattered). Must not resize points_lidar.
-  virtual void Split(ScanFrame* frame) = 0;
-  // Called after the update with the converged pose (e.g. move this scan's planes to world).
-  virtual void Finish(const ScanFrame& /*frame*/, const Eigen::Isometry3d& /*T_world_lidar*/) {}
-  virtual void Reset() {}
 };
 
 // Produces point-to-plane rows for the IEKF. ComputeRows is called once per iteration with the

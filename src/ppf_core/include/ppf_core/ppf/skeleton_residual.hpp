@@ -55,7 +55,7 @@ void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
 
 // Residual rows of the skeleton points of a ScanFrame (labels == kSkeleton) against a window.
 // The window is read at BeginScan (F from the previous scan, as in the reference pipeline; this
-// scan's planes enter the window only after the update, see PpfScanSplitter).
+// scan's planes enter the window only after the update, see SkeletonTracker::Finish).
 class SkeletonResidualProvider : public ResidualProvider {
  public:
   SkeletonResidualProvider(const SkeletonWindow* window, double eps);

@@ -1,6 +1,6 @@
 // Skeleton tracking (paper Sec. IV-B, Fig. 2): plane pre-fitting wired into the LIO pipeline.
 //
-// Per scan, through the hooks of residual_provider.hpp:
+// Per scan (the facade calls these in kPpf mode; residual_provider.hpp shows where):
 //   Split   (before the update)  window planes -> guesses at the IMU-predicted pose; pre-fit the
 //                                scan; label Omega kSkeleton, semi-inliers kDiscarded, Theta
 //                                kScattered (only those enter the kNN map).
@@ -9,11 +9,7 @@
 //                                scan (Eq. 10), recomputed at every iteration.
 //   Finish  (after the update)   this scan's planes -> world with the converged pose -> window
 //                                (track association keeps ids stable); Omega -> patch map.
-//
-// Usage with the facade (Mode::kPpf installs this by default):
-//   auto tracker = std::make_shared<ppf::SkeletonTracker>(ppf_config);
-//   lio.SetScanSplitter(tracker);
-//   lio.AddResidualProvider(tracker->residual_provider());
+//   Reset   a filter reset: window, patch map and tracks start empty.
 #pragma once
 
 #include <memory>
@@ -29,16 +25,17 @@
 
 namespace ppf {
 
-class SkeletonTracker : public ScanSplitter {
+class SkeletonTracker {
  public:
   explicit SkeletonTracker(const PpfConfig& config);
 
-  std::string Name() const override { return "ppf"; }
-  void Split(ScanFrame* frame) override;
-  void Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar) override;
-  void Reset() override;
+  // Set frame->labels (pre-filled with kScattered) without resizing points_lidar.
+  void Split(ScanFrame* frame);
+  // After the update, with the converged pose: this scan's planes to the world.
+  void Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar);
+  void Reset();
 
-  // The skeleton residual provider reading this tracker's window (install it alongside).
+  // The skeleton residual provider reading this tracker's window (the IEKF's second source).
   std::shared_ptr<ResidualProvider> residual_provider() const { return provider_; }
 
   const PpfConfig& config() const { return prefitter_.config(); }

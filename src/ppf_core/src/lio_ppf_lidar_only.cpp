@@ -174,7 +174,7 @@ void LioPpf::Impl::RedeskewLidarOnly(const DecodedScan& scan, const std::vector<
                                      double t_end) {
   const LidarOnlyOptions& lo = config.lidar_only;
   // Not for an IMU loss's scans: re-centred on each update, the looser imu.loss_prior_* let the
-  // pose slide (the core's 3 s dropout test: APE 2.0 m instead of 0.009 m).
+  // pose slide (the core's 3 s dropout test fails with it).
   if (lo.redeskew_iterations <= 0 || !lidar_only || moving_init || !motion.has_pose()) return;
   if (!(scan.has_time_field || scan.times_estimated)) return;  // nothing was de-skewed
   IekfOptions iekf = config.iekf;

@@ -10,10 +10,8 @@ PpfConfig PpfConfigForBeams(int beams) {
   // After 0.5 m downsampling a 32-beam scan keeps a few thousand points; the reference configs
   // use 150 for 16 and 32 beams. 64 beams keep ~3x more points on the same surfaces.
   // Incremental fitting: the reference enables it for 64 beams only. We also enable it for 32
-  // beams: measured with ppf_offline on ppf_sim sequences (single thread), APE RMSE urban HDL-32
-  // 30 s 0.200 -> 0.116 m, park HDL-32 10 s 0.093 -> 0.073 m, and pre-fitting 1.8 -> 0.4 ms per
-  // scan. For 16 beams it made no measurable difference (indoor VLP-16), so the reference's
-  // choice (off) stays.
+  // beams, where it was both more accurate and faster; for 16 beams it made no difference, so the
+  // reference's choice (off) stays (docs/decisions.md, "Incremental fitting").
   if (beams >= 96) {
     c.plane_least_inliers = 600;
     c.incremental_fitting = true;
@@ -25,7 +23,7 @@ PpfConfig PpfConfigForBeams(int beams) {
     c.incremental_fitting = true;
   } else {
     // Half the 32-beam count: a 16-beam scan keeps ~1000 points after downsampling, and 150 left
-    // walls of short corridors to kNN (indoor VLP-16: 44 % scattered; 80: 19 %, APE equal).
+    // the walls of short corridors to kNN (docs/decisions.md, "Least inliers for 16 beams").
     c.plane_least_inliers = 80;
     c.incremental_fitting = false;
   }

@@ -66,13 +66,17 @@ std::string ExeDir() {
 }  // namespace
 
 std::string ProjectShmUdpProfile() {
-  const std::string installed = ExeDir() + "/../share/ppf_dds_node/config/dds/shm_udp.xml";
-  if (Readable(installed)) return installed;
-#ifdef PPF_SOURCE_DDS_CONFIG_DIR
-  // Build-tree binaries (tests, `colcon build` without install) have no share/ next to them.
-  const std::string source = PPF_SOURCE_DDS_CONFIG_DIR "/shm_udp.xml";
-  if (Readable(source)) return source;
-#endif
+  // ppf_config installs the profiles. Looked up from the executable first, so that an install
+  // tree moved elsewhere (a container image) still finds its own: a merged install puts both
+  // packages under one prefix, colcon's default isolated install puts them side by side.
+  // Build-tree binaries (tests) have neither and use where ppf_config was found at build time.
+  const std::string exe = ExeDir();
+  for (const std::string& dir :
+       {exe + "/../share/ppf_config/dds", exe + "/../../ppf_config/share/ppf_config/dds",
+        std::string(PPF_CONFIG_DDS_DIR)}) {
+    const std::string path = dir + "/shm_udp.xml";
+    if (Readable(path)) return path;
+  }
   return "";
 }
 

@@ -88,7 +88,7 @@ struct BenchOptions {
   int scans = 100, rings = 64, columns = 2048;
   double rate_hz = 10.0;
   std::string node_exe = ExeDir() + "/ppf_node";
-  std::string profiles = ExeDir() + "/../share/ppf_dds_node/config/dds/shm_udp.xml";
+  std::string profiles = ppf::dds::ProjectShmUdpProfile();
   std::string profile = "ppf_shm_udp";
   int domain = 1 + static_cast<int>(getpid() % 200);
   std::string omp_policy;  // "" = the node's own default (core.omp_wait_policy: passive)

@@ -21,7 +21,7 @@ namespace fdds = eprosima::fastdds::dds;
 using Clock = std::chrono::steady_clock;
 
 // Cloud buffers are recycled: a fresh multi-MB vector per scan costs page faults and a memset
-// in the listener (measured: the bulk of its p99).
+// in the listener, which dominated its latency tail.
 class NodeInputs::CloudPool : public std::enable_shared_from_this<CloudPool> {
  public:
   std::unique_ptr<sensor_msgs::msg::PointCloud2> Take() {

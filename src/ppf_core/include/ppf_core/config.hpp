@@ -1,7 +1,7 @@
 // The core's configuration: the Config struct, its validation and its YAML loader.
 //
 // The YAML keys, their defaults and what each does are documented in ONE place,
-// config/reference.yaml (every key, each value equal to the default here; test_config_yaml fails
+// config/reference.yaml (every key, each value equal to the default here; test_config fails
 // when the two differ, or when a key of the loader's table is missing there). The presets
 // (config/vlp16.yaml, ...) hold only what differs from it. The comments below say why a default is
 // what it is. Every stage's options are here, before Config, so that this one header is the whole
@@ -59,9 +59,9 @@ struct LidarOnlyOptions {
   // planes, after the coarse alignment) at which a guess is kept without trying further ones.
   double good_fit = 0.8;
   // ... or at least this share of the median fit of the last 10 scans, if that is lower: in kPpf
-  // a right pose fits less (0.74 median on balm_realworld_lidar, kNN 0.95: covered skeleton
-  // points meet the sparse scattered map at plane borders), and an absolute bar made it try every
-  // guess on almost every scan (149 of 177, 140 ms a scan instead of 26).
+  // a right pose fits less (covered skeleton points meet the sparse scattered map at plane
+  // borders), and an absolute bar made it try every guess on almost every scan
+  // (docs/decisions.md, "Relative good fit").
   double good_fit_relative = 0.95;
   // Best fit below this: the scan is registered anyway, but reported Status::kDegenerate with
   // the fit in the reason (the pose may be off).
@@ -156,10 +156,9 @@ struct IekfOptions {
   double refined_gate_after_s = 3.0;  // seconds after the map's first scan
   int min_rows = 20;                  // fewer rows: skip the update, keep the prediction
   // J^T J eigenvalue (points) per direction below which the direction is degenerate. 10 rows of
-  // 3 cm noise still pin it to ~1 cm per scan; 30 (the first default) threw that away: PPF on the
-  // 60 s hand-held indoor VLP-16 corridor (the sandwich layer discards door-frame points) was
-  // degenerate along the corridor in 285 of 590 scans, APE 98 mm; with 10: 5 scans, 17 mm. kNN
-  // there: 13.3 mm either way.
+  // 3 cm noise still pin it to ~1 cm per scan; 30 (the first default) threw that away in PPF
+  // mode in corridors, where the sandwich layer discards the door frames (docs/decisions.md,
+  // "Degeneracy threshold").
   double degeneracy_min_eig_translation = 10.0;
   double degeneracy_min_eig_rotation = 300.0;  // J^T J eigenvalue (points * m^2)
   // Metres from the LiDAR beyond which points give no residual (0 = no limit); they are still
@@ -240,10 +239,8 @@ struct Config {
   // the uncertainty is widened by gap_acc_std / gap_gyro_std for the unmeasured motion, so the
   // next scan re-registers against the map (ScanResult::imu_gap_s says so). Extrapolation errors
   // grow with the square of the gap and registration (0.5 m residual gates) only recovers small
-  // ones: measured on the urban HDL-64 replay at 5-7 m/s with the link cut, 2.0 s gaps ended
-  // 4-8 cm off after the gap, 2.4 s gaps 6 cm and 0.64 m (height), 2.9 s gaps 2.5-3.1 m. After a
-  // longer gap the first scan is registered LiDAR-only and LIO re-anchors (no reset). 0 = never
-  // bridge by integration.
+  // ones (docs/decisions.md, "IMU gap bridging"). After a longer gap the first scan is registered
+  // LiDAR-only and LIO re-anchors (no reset). 0 = never bridge by integration.
   double max_imu_gap_bridge_s = 2.5;
   double gap_acc_std = 1.0;    // m/s^2, unmeasured acceleration assumed during a bridged gap
   double gap_gyro_std = 0.05;  // rad/s, unmeasured turn rate assumed during a bridged gap

@@ -35,23 +35,17 @@ struct PpfConfig {
   // Normal-consistency gate (not in the paper; ALGORITHM-NOTES lists it as a possible
   // improvement): a skeleton point is matched only to window planes whose normal is within this
   // angle of its own fitted plane's normal. Degrees; 0 = off (the paper's Eq. 10 as is).
-  // Measured: without it 0.6-1.6% of skeleton matches in the core's synthetic room paired a wall
-  // point with the floor (new planes not in the window yet); with 10 deg none, and the 64-beam
-  // room's APE dropped from 0.022 m to 0.002 m (urban HDL-32 sim: 0.032 -> 0.028 m, others equal).
+  // Without it a wall point new to the window can be matched to the floor (docs/decisions.md,
+  // "Normal gate").
   double skeleton_normal_gate_deg = 10.0;
   // Map-anchored skeleton residuals (plane_patch_map.hpp; not in the paper, which matches against
   // the previous scan's planes only): skeleton points are matched to the plane patch of their
   // world cell. Points in cells without a usable patch of their surface yet (one whose own points
   // fix its normal) get no residual, or with patch_window_fallback the nearest window plane as in
-  // Eq. 10 (measured with the current defaults, that fallback nearly doubled the APE: geometric
-  // mean PPF/kNN over eight ppf_sim sequences 1.21 -> 2.34). Patches of patch_size metres,
-  // frozen after patch_max_points points, dropped beyond patch_radius metres. Measured (ppf_sim,
-  // 30 s, paper's sandwich values, APE RMSE, anchored / anchored + fallback / window only, kNN mode
-  // for reference), before patches had to fix their own normal (plane_patch_map.hpp):
-  //   urban HDL-64   16.5 / 17.0 /  59 mm   (kNN  6 mm)
-  //   urban HDL-32   62   / 76   / 110 mm   (kNN 36 mm)
-  //   indoor VLP-16  22.6 / 22.3 /  26 mm   (kNN 16 mm)
-  //   park HDL-32    56   / 56   /  80 mm   (kNN 46 mm)
+  // Eq. 10 (off: the window planes carry the scan-to-scan bias the patches remove). Patches of
+  // patch_size metres, frozen after patch_max_points points, dropped beyond patch_radius metres.
+  // The APE of anchored / fallback / window-only: docs/decisions.md, "Map-anchored skeleton
+  // residuals".
   bool anchor_patches = true;
   bool patch_window_fallback = false;
   double patch_size = 2.0;
@@ -59,31 +53,19 @@ struct PpfConfig {
   double patch_radius = 150.0;
 
   // --- fit-remove-fit --------------------------------------------------------------------------
-  // Minimum strict inliers for a plane (guess or RANSAC) to be accepted. Must scale with density:
-  // 80 for 16 beams, 150 for 32 beams, 400 for 64 beams, 600 for 128 beams (after 0.5 m
-  // downsampling).
+  // Minimum strict inliers for a plane (guess or RANSAC) to be accepted. Must scale with density
+  // (PpfConfigForBeams: 80 for 16 beams up to 600 for 128, after 0.5 m downsampling).
   int plane_least_inliers = 80;
   // At most this many planes are accepted per scan (guesses + RANSAC).
   int max_planes_per_scan = 10;
   // Stop fitting once fewer than this fraction of the input points remain.
   double min_remaining_ratio = 0.1;
   // The paper's values (delta 0.1, semi factor 4, 5 planes, stop at 25 % left, 150 inliers for 16
-  // beams) left 36-54 % of the points to kNN and discarded up to 27 %. Measured with ppf_offline,
-  // 1 thread, ppf_sim 30 s and 60 s sequences (APE RMSE PPF / kNN in mm; scattered share):
-  //                     paper values          these defaults
-  //   urban HDL-64 30 s  7.1 / 6.1, 36 %      8.8 / 6.1, 21 %
-  //   urban HDL-64 60 s 33.7 / 18.9, 37 %    44.5 / 18.9, 17 %
-  //   urban HDL-32 30 s 58.6 / 36.5, 47 %    23.7 / 36.5, 20 %
-  //   urban HDL-32 60 s  186 / 170, 47 %      113 / 170, 18 %
-  //   park HDL-32 30 s  54.4 / 46.4, 36 %    57.4 / 46.4, 15 %
-  //   park HDL-32 60 s  52.5 / 47.0, 34 %    73.5 / 47.0, 14 %
-  //   indoor VLP-16 30 s 23.2 / 15.8, 54 %   20.4 / 15.8, 19 %
-  //   indoor VLP-16 60 s 17.7 / 13.3, 34 %   16.0 / 13.3, 16 %
-  // Geometric mean of PPF/kNN APE over these eight: 1.32 -> 1.21, while kNN residuals fall to
-  // 15-21 % of the points (residual stage 4-9x faster than kNN mode on 32/64 beams).
+  // beams) left a third to a half of the points to kNN and discarded many; these defaults leave
+  // about a fifth to kNN at a similar APE (docs/decisions.md, "Fit-remove-fit defaults").
   // Incremental fitting: try the window planes moved by the IMU-predicted motion before RANSAC.
-  // Paper: worth it for >= 64 beams (~6 ms -> ~1.5 ms). PpfConfigForBeams() enables it from 32
-  // beams up (measured, see ppf_config.cpp); this plain default is the 16-beam one (off).
+  // The paper uses it for >= 64 beams; PpfConfigForBeams() enables it from 32 beams up
+  // (docs/decisions.md, "Incremental fitting"); this plain default is the 16-beam one (off).
   bool incremental_fitting = false;
   // Shape tests of a candidate plane (RANSAC or guess), not in the paper. RANSAC scores a plane
   // by its inlier count alone, and with a band as wide as delta a count can come from things that

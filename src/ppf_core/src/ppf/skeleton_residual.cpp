@@ -42,10 +42,9 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
   const long n = static_cast<long>(skeleton_indices.size());
   const long num_points = static_cast<long>(points_lidar.size());
   std::vector<SkeletonMatch> per_point(n);
-  // Each point is a hash lookup and a few dot products (~45 ns): parallel only above a few
-  // thousand points, where it pays for the fork/join. Measured with ppf_compare, urban HDL-64
-  // 60 s, 2 threads, quiet machine: residual stage 3.06-3.17 -> 2.68-2.78 ms per scan (5.2k
-  // skeleton points); results are identical (each point writes its own slot).
+  // Each point is a hash lookup and a few dot products: parallel only above a few thousand
+  // points, where it pays for the fork/join (docs/decisions.md, "Parallel skeleton matching");
+  // results are identical (each point writes its own slot).
   // The configured thread count, as the other stages use: without it this loop ran on the
   // OpenMP default (all cores) even in a run configured for one thread.
 #ifdef _OPENMP

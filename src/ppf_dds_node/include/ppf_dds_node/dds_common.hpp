@@ -41,9 +41,8 @@ struct ParticipantOptions {
 // Fills options->profiles_file / profile_name accordingly and returns one line for the log.
 std::string ChooseToolTransport(bool fastdds_defaults, ParticipantOptions* options);
 
-// Where the project's shm_udp.xml is: installed next to the executable
-// (<prefix>/share/ppf_dds_node/config/dds), else in the source tree the tools were built from.
-// Empty if neither exists.
+// Where the project's shm_udp.xml is: ppf_config's install (share/ppf_config/dds), found from
+// the executable's install tree, else where ppf_config was at build time. Empty if neither exists.
 std::string ProjectShmUdpProfile();
 inline constexpr const char* kProjectShmUdpProfileName = "ppf_shm_udp";
 

@@ -57,8 +57,8 @@ struct NodeConfig {
   std::string core_mode;  // "", "knn" or "ppf" ("" = as in core_config_file)
   // OpenMP idle workers: "passive" (sleep), "active" (spin) or "" (leave the environment alone).
   // Spinning workers compete with the DDS and executor threads (and the core's own next
-  // iteration) when CPUs are shared: measured on 2 shared cores, passive halves the core time and
-  // the node overhead p99. Applied by re-executing ppf_node once with OMP_WAIT_POLICY set, unless
+  // iteration) when CPUs are shared (ppf_latency_bench --omp-wait-policy compares the two).
+  // Applied by re-executing ppf_node once with OMP_WAIT_POLICY set, unless
   // OMP_WAIT_POLICY is already in the environment (an explicit choice wins).
   std::string omp_wait_policy = "passive";
   std::string tum_file;

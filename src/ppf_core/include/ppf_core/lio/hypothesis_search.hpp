@@ -53,8 +53,7 @@ CoarseAlignment AlignHypotheses(const ScanFrame& frame,
 // plane their neighbours span. fit = inliers / covered (0 if under 5 % of the points are
 // covered). Over covered points, not all: in kPpf the kNN map holds only the scattered points,
 // so a scan's planar surfaces find nothing there even at the right pose, and a share of all
-// points would sink as the map ages (measured on balm_realworld_lidar: 0.74 -> 0.28 over 80 scans
-// at a right pose, while kNN's stayed at 0.94).
+// points would sink as the map ages at a right pose (docs/decisions.md, "Relative good fit").
 struct FitScore {
   size_t inliers = 0;
   size_t covered = 0;

@@ -5,12 +5,11 @@
 // Why downsample before de-skew (the paper de-skews first): de-skew is an affine function of each
 // point for a fixed time, and within one 0.5 m voxel of a spinning LiDAR the points are a few
 // milliseconds apart (neighbouring azimuths). The centroid de-skewed with the mean time equals the
-// mean of the de-skewed points up to |omega| * cov(t, p), under 2 mm at 150 deg/s (test_preprocess).
-// Only where the sweep closes do first and last firings (0.1 s apart) share a voxel; there the mean
-// would be a ghost point (8 cm off in that test), so voxels are also split by time bucket
-// (time_bucket_s, half a sweep): the seam's two sides never mix. In exchange the fixed per-scan cost
-// (filter + downsample + de-skew) drops from ~5.4 ms to ~2 ms on HDL-64 (ppf_compare), which is most
-// of what both registration modes spend outside registration.
+// mean of the de-skewed points up to |omega| * cov(t, p) (test_preprocess bounds it). Only where
+// the sweep closes do first and last firings (0.1 s apart) share a voxel; there the mean would be
+// a ghost point, so voxels are also split by time bucket (time_bucket_s, half a sweep): the seam's
+// two sides never mix. In exchange de-skew runs on the downsampled points, which cuts most of the
+// fixed per-scan cost outside registration (docs/decisions.md, "Downsample before de-skew").
 #pragma once
 
 #include <cstddef>

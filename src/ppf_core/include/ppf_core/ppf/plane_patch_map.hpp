@@ -1,14 +1,13 @@
 // Plane patch map: where the skeleton planes were, in the world, so skeleton residuals are
 // anchored to the map instead of to the previous scan.
 //
-// Why (measured, ppf_compare / ppf_offline on ppf_sim urban HDL-64, 30 s): the paper matches the
+// Why (docs/decisions.md, "Map-anchored skeleton residuals"): the paper matches the
 // skeleton points of scan n to the window planes fitted in scan n-1. Nothing then remembers where
 // a surface was before scan n-1, so the registration is scan-to-scan for every direction the
 // planes constrain. A large, gently curved surface (a road over a hill) is the worst case: each
 // scan aligns its ground to the previous scan's tangent plane and the error is passed on, so the
-// estimate keeps the first scan's ground slope ("flat earth"): APE 59 mm against kNN's 6 mm, the
-// error all in height, roll and pitch. Averaging several scans' fits per track made it worse
-// (66 mm with 3, 98 mm with 10): the error is a bias, not noise.
+// estimate keeps the first scan's ground slope ("flat earth"), the error all in height, roll and
+// pitch. Averaging several scans' fits per track made it worse: the error is a bias, not noise.
 //
 // The fix keeps PPF's cost model: skeleton points still need no kNN search and never enter the
 // kNN map. After each update the skeleton points, in the world, are accumulated into a coarse
@@ -22,9 +21,7 @@
 // A patch gives residuals only once its own points fix its normal (PCA over points that span the
 // cell in two directions). Before that (one scan line crossing the cell: typical for ground seen
 // from afar) the only normal at hand is that of the scan's large plane, which is the scan-wide
-// tangent again: borrowing it brought the flat-earth bias back (measured with ppf_offline,
-// 1 thread, APE RMSE urban HDL-64 30 s 16.5 -> 7.1 mm, 60 s 60.0 -> 33.7 mm, park HDL-32 60 s
-// 86.4 -> 52.5 mm when such patches give no residual instead).
+// tangent again: borrowing it brought the flat-earth bias back, so such patches give no residual.
 #pragma once
 
 #include <cstddef>

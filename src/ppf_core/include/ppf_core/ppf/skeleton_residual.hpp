@@ -3,8 +3,8 @@
 // search: the search space is <= window_size planes instead of the local point map.
 //
 // With a PlanePatchMap (plane_patch_map.hpp, SetPatchMap) a skeleton point whose world cell holds
-// a patch of its own surface is matched to that patch instead (map-anchored; see that header for
-// the measured reason); the window planes remain the fallback.
+// a patch of its own surface is matched to that patch instead (map-anchored; that header says
+// why); the window planes remain the fallback.
 //
 // Matches are recomputed from scratch at every call (every IEKF iteration): no per-point
 // "selected" flag survives between iterations, unlike the reference code where a stale flag kept

@@ -177,11 +177,11 @@ struct ScanResult {
   size_t scattered_points = 0;    // labelled kScattered
   size_t discarded_points = 0;    // labelled kDiscarded
   size_t knn_residuals = 0;       // rows of the kNN provider (last iteration)
-  size_t skeleton_residuals = 0;  // rows of other providers (last iteration)
-  // kPpf with the built-in tracker: the world-frame skeleton-plane window after this scan. Track
+  size_t skeleton_residuals = 0;  // rows of the skeleton provider (last iteration)
+  // kPpf: the skeleton tracker's world-frame skeleton-plane window after this scan. Track
   // ids are stable for the same physical plane across scans (ppf_msgs/SkeletonPlaneArray).
   std::vector<SkeletonPlane> skeleton_planes;
-  // kPpf with the built-in tracker: plane patches in its map (plane_patch_map.hpp), the skeleton
+  // kPpf: the skeleton tracker's plane patches (plane_patch_map.hpp), the skeleton
   // points' share of the local map (a patch summarises up to patch_max_points points).
   size_t skeleton_patches = 0;
   size_t map_inserted = 0;        // points offered to the map

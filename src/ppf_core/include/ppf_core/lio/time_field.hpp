@@ -59,6 +59,9 @@ class TimeFieldDecoder {
   bool Decode(const CloudView& cloud, DecodedScan* out, std::string* error);
 
   const TimeFieldInfo& info() const { return info_; }
+  // Threads for decoding large clouds (0 = OpenMP default, 1 = serial); the result does not
+  // depend on it.
+  void set_num_threads(int num_threads) { num_threads_ = num_threads; }
   void Reset() { info_ = TimeFieldInfo(); }
 
  private:
@@ -70,6 +73,7 @@ class TimeFieldDecoder {
   // Raw time values of the scan being decoded, kept between calls: a fresh buffer per scan is an
   // allocation (and page faults) the size of the scan.
   std::vector<double> raw_t_;
+  int num_threads_ = 1;
 };
 
 // Checks the layout of `cloud` (x/y/z present, offsets inside point_step, buffer size). Returns

@@ -223,6 +223,7 @@ std::vector<ScanResult> LioPpf::Impl::Process(bool flush) {
       out.push_back(ProcessOne(q));
       if (moving) MovingInitStep(&out.back());
     }
+    decoder.Recycle(&q.scan.points);
     scans.pop_front();
   }
   if (flush) {

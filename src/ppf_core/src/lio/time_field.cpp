@@ -476,6 +476,7 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
   }
   const bool all_float32 = fields.XyzFloat32() && (!fields.intensity || fields.IntensityFloat32());
   if (all_float32) {
+    out->points.swap(spare_);  // resized, not cleared: every kept element is overwritten
     int threads = 1;
 #ifdef _OPENMP
     threads = num_threads_ > 0 ? num_threads_ : omp_get_max_threads();

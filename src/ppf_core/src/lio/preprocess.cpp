@@ -101,7 +101,10 @@ void VoxelGridDownsampler::Grid::Accumulate(double t_ref, ForEach&& for_each) {
   Slot* slots = table.data();
   size_t mask = table.size() - 1;
   int shift = 64 - __builtin_ctzll(table.size());
-  for_each([&](uint64_t key, const TimedPoint& tp, size_t input_index) {
+  // The parallel path knows the keys ahead: it prefetches the slot of a later key, since the
+  // slot load misses the cache on most points.
+  const auto prefetch = [&](uint64_t key) { __builtin_prefetch(&slots[Mix(key) >> shift]); };
+  const auto add = [&](uint64_t key, const TimedPoint& tp, size_t input_index) {
     size_t h = Mix(key) >> shift;
     while (slots[h].generation == gen && slots[h].key != key) h = (h + 1) & mask;
     Slot& slot = slots[h];
@@ -125,7 +128,8 @@ void VoxelGridDownsampler::Grid::Accumulate(double t_ref, ForEach&& for_each) {
     a.dt += tp.t - t_ref;
     a.intensity += tp.intensity;
     ++a.count;
-  });
+  };
+  for_each(add, prefetch);
 }
 
 PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, double t_begin,
@@ -161,7 +165,7 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
   Grid& g = grids_[0];
   g.Begin(in.size() / stride / 8);
   size_t valid = 0;
-  g.Accumulate<false>(km.t_ref, [&](auto&& add) {
+  g.Accumulate<false>(km.t_ref, [&](auto&& add, auto&&) {
     for (size_t i = 0; i < in.size(); i += stride) {
       const TimedPoint& tp = in[i];
       if (!km.Keep(tp)) continue;
@@ -176,10 +180,11 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
   return stats;
 }
 
-// Two phases in one parallel region: each thread filters and keys its range of the input; then
-// each thread walks all kept keys in input order and accumulates the voxels it owns. Every voxel
-// thus sums its points in the serial order, and merging the grids by first input index restores
-// the serial output order.
+// Three phases in one parallel region. Each thread filters and keys its range of the input into
+// one list per owning thread. Each thread then accumulates the voxels it owns from its lists of
+// every range, ranges in input order: every voxel sums its points in the serial order. Last, each
+// thread writes its voxels' means where the serial grid has them: by first input index, behind the
+// voxels of every grid that appeared earlier.
 PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>& in,
                                                   double t_begin, const PreprocessOptions& options,
                                                   int threads, std::vector<TimedPoint>* out) {
@@ -191,64 +196,75 @@ PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>&
                     options.time_bucket_s > 0.0 ? 1.0 / options.time_bucket_s : 0.0};
   const size_t sampled = (in.size() + stride - 1) / stride;
   if (grids_.size() < static_cast<size_t>(threads)) grids_.resize(static_cast<size_t>(threads));
-  keys_.resize(sampled);
-  kept_index_.resize(sampled);
-  std::vector<size_t> begin(static_cast<size_t>(threads) + 1, 0), kept(threads, 0);
-  int used = 1;
+  size_t cap = 0, valid = 0;
+  std::vector<size_t> count;  // count[range * nt + owner]: keys in that list
 #pragma omp parallel num_threads(threads)
   {
 #ifdef _OPENMP
-    const int t = omp_get_thread_num();
-    const int nt = omp_get_num_threads();
+    const size_t t = static_cast<size_t>(omp_get_thread_num());
+    const size_t nt = static_cast<size_t>(omp_get_num_threads());
 #else
-    const int t = 0, nt = 1;
+    const size_t t = 0, nt = 1;
 #endif
-    if (t == 0) used = nt;
-    const size_t lo = sampled * static_cast<size_t>(t) / static_cast<size_t>(nt);
-    const size_t hi = sampled * static_cast<size_t>(t + 1) / static_cast<size_t>(nt);
-    begin[t] = lo;
-    size_t n = lo;
-    for (size_t s = lo; s < hi; ++s) {
+#pragma omp single
+    {
+      cap = (sampled + nt - 1) / nt;  // the longest range
+      if (keys_.size() < nt * nt * cap) {
+        keys_.resize(nt * nt * cap);
+        kept_index_.resize(nt * nt * cap);
+      }
+      count.assign(nt * nt, 0);
+    }
+    std::vector<size_t> n(nt, 0);
+    for (size_t s = sampled * t / nt, end = sampled * (t + 1) / nt; s < end; ++s) {
       const TimedPoint& tp = in[s * stride];
       if (!km.Keep(tp)) continue;
-      keys_[n] = km.Key(tp);
-      kept_index_[n++] = static_cast<uint32_t>(s * stride);
+      const uint64_t key = km.Key(tp);
+      const size_t o = static_cast<size_t>(Owner(key, static_cast<int>(nt)));
+      const size_t at = (t * nt + o) * cap + n[o]++;
+      keys_[at] = key;
+      kept_index_[at] = static_cast<uint32_t>(s * stride);
     }
-    kept[t] = n - lo;
+    for (size_t o = 0; o < nt; ++o) count[t * nt + o] = n[o];
 #pragma omp barrier
     Grid& g = grids_[t];
-    g.Begin(sampled / 8 / static_cast<size_t>(nt));
-    g.Accumulate<true>(km.t_ref, [&](auto&& add) {
-      for (int c = 0; c < nt; ++c) {
-        for (size_t j = begin[c], end = begin[c] + kept[c]; j < end; ++j) {
-          const uint64_t key = keys_[j];
-          if (Owner(key, nt) != t) continue;
+    g.Begin(sampled / 8 / nt);
+    g.Accumulate<true>(km.t_ref, [&](auto&& add, auto&& prefetch) {
+      constexpr size_t kAhead = 16;
+      for (size_t c = 0; c < nt; ++c) {
+        const size_t list = (c * nt + t) * cap;
+        const size_t end = list + count[c * nt + t];
+        for (size_t j = list; j < end; ++j) {
+          if (j + kAhead < end) prefetch(keys_[j + kAhead]);
           const uint32_t i = kept_index_[j];
-          add(key, in[i], i);
+          add(keys_[j], in[i], i);
         }
       }
     });
-  }
-  size_t valid = 0, voxels = 0;
-  for (int c = 0; c < used; ++c) {
-    valid += kept[c];
-    voxels += grids_[c].acc.size();
+#pragma omp barrier
+#pragma omp single
+    {
+      size_t voxels = 0;
+      for (size_t c = 0; c < nt; ++c) voxels += grids_[c].acc.size();
+      for (size_t k = 0; k < nt * nt; ++k) valid += count[k];
+      out->resize(voxels);
+    }
+    // Each grid's first indices ascend: one pointer per other grid finds how many of its voxels
+    // came first.
+    std::vector<size_t> before(nt, 0);
+    for (size_t j = 0; j < g.acc.size(); ++j) {
+      const uint32_t f = g.first[j];
+      size_t pos = j;
+      for (size_t d = 0; d < nt; ++d) {
+        if (d == t) continue;
+        const std::vector<uint32_t>& other = grids_[d].first;
+        while (before[d] < other.size() && other[before[d]] < f) ++before[d];
+        pos += before[d];
+      }
+      WriteMean(g.acc[j], km.t_ref, &(*out)[pos]);
+    }
   }
   stats.valid_points = valid;
-  out->resize(voxels);
-  std::vector<size_t> pos(static_cast<size_t>(used), 0);
-  for (size_t o = 0; o < voxels; ++o) {
-    int best = -1;
-    uint32_t best_first = 0;
-    for (int c = 0; c < used; ++c) {
-      const Grid& g = grids_[c];
-      if (pos[c] < g.acc.size() && (best < 0 || g.first[pos[c]] < best_first)) {
-        best = c;
-        best_first = g.first[pos[c]];
-      }
-    }
-    WriteMean(grids_[best].acc[pos[best]++], km.t_ref, &(*out)[o]);
-  }
   stats.downsampled_points = out->size();
   return stats;
 }

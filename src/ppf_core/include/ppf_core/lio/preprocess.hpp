@@ -74,7 +74,8 @@ class VoxelGridDownsampler {
     uint32_t generation = 0;
     void Begin(size_t expected_voxels);
     void Reserve(size_t expected_voxels);
-    // for_each(add) calls add(key, point, input index) for this grid's points in input order.
+    // for_each(add, prefetch) calls add(key, point, input index) for this grid's points in input
+    // order; prefetch(key) may announce a later key.
     template <bool kRecordFirst, typename ForEach>
     void Accumulate(double t_ref, ForEach&& for_each);
   };
@@ -83,8 +84,8 @@ class VoxelGridDownsampler {
                               std::vector<TimedPoint>* out);
 
   std::vector<Grid> grids_{1};
-  // Parallel path: the kept points' keys and input indices, each thread's share of the input
-  // compacted from the start of its range.
+  // Parallel path: the kept points' keys and input indices, one list per (input range, owning
+  // thread), each in input order.
   std::vector<uint64_t> keys_;
   std::vector<uint32_t> kept_index_;
 };

@@ -185,9 +185,9 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
 // every range, ranges in input order: every voxel sums its points in the serial order. Last, each
 // thread writes its voxels' means where the serial grid has them: by first input index, behind the
 // voxels of every grid that appeared earlier.
-PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>& in,
-                                                  double t_begin, const PreprocessOptions& options,
-                                                  int threads, std::vector<TimedPoint>* out) {
+PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>& in, double t_begin,
+                                                  const PreprocessOptions& options, int threads,
+                                                  std::vector<TimedPoint>* out) {
   PreprocessStats stats;
   const size_t stride = static_cast<size_t>(std::max(1, options.point_stride));
   const KeyMaker km{static_cast<float>(options.min_range * options.min_range),

@@ -30,6 +30,7 @@ LioPpf::Impl::Impl(const Config& c) : config(c), map(c.map) {
     config.knn.num_threads = config.num_threads;
   }
   decoder = TimeFieldDecoder(config.time, config.log);
+  decoder.set_num_threads(config.num_threads);
   init = ImuInitializer(config.init);
   map = VoxelMap(config.map);
   knn = std::make_shared<KnnResidualProvider>(config.knn);
@@ -222,6 +223,7 @@ std::vector<ScanResult> LioPpf::Impl::Process(bool flush) {
       out.push_back(ProcessOne(q));
       if (moving) MovingInitStep(&out.back());
     }
+    decoder.Recycle(&q.scan.points);
     scans.pop_front();
   }
   if (flush) {

@@ -118,6 +118,7 @@ void LioPpf::Impl::Preprocess(const QueuedScan& q, std::vector<TimedPoint>* pts,
   pre.max_range = config.max_range;
   pre.point_stride = config.point_stride;
   pre.voxel_size = config.scan_voxel_size;
+  pre.num_threads = config.num_threads;
   const PreprocessStats pre_stats = downsampler.Run(scan.points, scan.t_begin, pre, pts);
   r->valid_points = pre_stats.valid_points;
   r->downsampled_points = pre_stats.downsampled_points;

@@ -2,6 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 namespace ppf {
 namespace {
@@ -19,6 +24,13 @@ uint64_t PackKey(int64_t x, int64_t y, int64_t z, int64_t bucket) {
 
 uint64_t Mix(uint64_t key) { return key * 0x9E3779B97F4A7C15ull; }
 
+// The thread owning a voxel in the parallel path: a second multiplier, so that the owner is
+// independent of the table slot (the top bits of Mix) and each thread's table fills evenly.
+int Owner(uint64_t key, int threads) {
+  const uint64_t h = (key * 0xC2B2AE3D27D4EB4Full) >> 32;
+  return static_cast<int>((h * static_cast<uint64_t>(threads)) >> 32);
+}
+
 // floor() for the voxel index of a range-filtered (finite, bounded) coordinate: truncation, one
 // less for negative non-integers. Equal to std::floor there (the truncation of a float is a float),
 // without the rounding-mode sequence the compiler emits for floorf on baseline x86-64.
@@ -27,26 +39,97 @@ int64_t FloorToInt(float v) {
   return i - (v < static_cast<float>(i) ? 1 : 0);
 }
 
+// Range filter and voxel key of one point, shared by both paths.
+struct KeyMaker {
+  float min_r2, max_r2, inv;
+  double t_ref, inv_bucket;
+  bool Keep(const TimedPoint& tp) const {
+    const float r2 = tp.p.squaredNorm();
+    return r2 >= min_r2 && r2 <= max_r2;
+  }
+  uint64_t Key(const TimedPoint& tp) const {
+    return PackKey(FloorToInt(tp.p.x() * inv), FloorToInt(tp.p.y() * inv),
+                   FloorToInt(tp.p.z() * inv), static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
+  }
+};
+
+template <typename Acc>
+void WriteMean(const Acc& a, double t_ref, TimedPoint* tp) {
+  const double inv_n = 1.0 / a.count;
+  tp->p = Eigen::Vector3f(static_cast<float>(a.x * inv_n), static_cast<float>(a.y * inv_n),
+                          static_cast<float>(a.z * inv_n));
+  tp->intensity = static_cast<float>(a.intensity * inv_n);
+  tp->t = t_ref + a.dt * inv_n;
+}
+
 }  // namespace
 
-void VoxelGridDownsampler::Reserve(size_t expected_voxels) {
+void VoxelGridDownsampler::Grid::Begin(size_t expected_voxels) {
+  if (++generation == 0) {  // wrapped after 2^32 scans: forget every stamp once
+    table.assign(table.size(), Slot());
+    generation = 1;
+  }
+  acc.clear();
+  first.clear();
+  Reserve(expected_voxels);
+}
+
+void VoxelGridDownsampler::Grid::Reserve(size_t expected_voxels) {
   size_t capacity = 1024;
   while (capacity < 2 * expected_voxels) capacity <<= 1;
-  if (capacity <= table_.size()) return;
-  // Re-insert the voxels of the current call: Run() grows the table mid-scan when needed.
+  if (capacity <= table.size()) return;
+  // Re-insert the voxels of the current call: Accumulate() grows the table mid-scan when needed.
   std::vector<Slot> old;
-  old.swap(table_);
-  table_.assign(capacity, Slot());
+  old.swap(table);
+  table.assign(capacity, Slot());
   const int shift = 64 - __builtin_ctzll(capacity);
   for (const Slot& s : old) {
-    if (s.generation != generation_) continue;
+    if (s.generation != generation) continue;
     for (size_t h = Mix(s.key) >> shift;; h = (h + 1) & (capacity - 1)) {
-      if (table_[h].generation != generation_) {
-        table_[h] = s;
+      if (table[h].generation != generation) {
+        table[h] = s;
         break;
       }
     }
   }
+}
+
+template <bool kRecordFirst, typename ForEach>
+void VoxelGridDownsampler::Grid::Accumulate(double t_ref, ForEach&& for_each) {
+  // Locals, not members, in the probe loop: the slot stores could otherwise alias them.
+  const uint32_t gen = generation;
+  Slot* slots = table.data();
+  size_t mask = table.size() - 1;
+  int shift = 64 - __builtin_ctzll(table.size());
+  // The parallel path knows the keys ahead: it prefetches the slot of a later key, since the
+  // slot load misses the cache on most points.
+  const auto prefetch = [&](uint64_t key) { __builtin_prefetch(&slots[Mix(key) >> shift]); };
+  const auto add = [&](uint64_t key, const TimedPoint& tp, size_t input_index) {
+    size_t h = Mix(key) >> shift;
+    while (slots[h].generation == gen && slots[h].key != key) h = (h + 1) & mask;
+    Slot& slot = slots[h];
+    uint32_t index = slot.index;
+    if (slot.generation != gen) {
+      index = static_cast<uint32_t>(acc.size());
+      slot = Slot{key, gen, index};
+      acc.emplace_back();
+      if (kRecordFirst) first.push_back(static_cast<uint32_t>(input_index));
+      if (2 * acc.size() > table.size()) {
+        Reserve(acc.size() * 2);  // moves slots, not indices
+        slots = table.data();
+        mask = table.size() - 1;
+        shift = 64 - __builtin_ctzll(table.size());
+      }
+    }
+    Accumulator& a = acc[index];
+    a.x += tp.p.x();
+    a.y += tp.p.y();
+    a.z += tp.p.z();
+    a.dt += tp.t - t_ref;
+    a.intensity += tp.intensity;
+    ++a.count;
+  };
+  for_each(add, prefetch);
 }
 
 PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, double t_begin,
@@ -55,74 +138,133 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
   PreprocessStats stats;
   out->clear();
   const size_t stride = static_cast<size_t>(std::max(1, options.point_stride));
-  const float min_r2 = static_cast<float>(options.min_range * options.min_range);
-  const float max_r2 = static_cast<float>(options.max_range * options.max_range);
-  auto keep = [&](const TimedPoint& tp) {
-    const float r2 = tp.p.squaredNorm();
-    return r2 >= min_r2 && r2 <= max_r2;
-  };
+  const KeyMaker km{static_cast<float>(options.min_range * options.min_range),
+                    static_cast<float>(options.max_range * options.max_range),
+                    static_cast<float>(1.0 / options.voxel_size), t_begin,
+                    options.time_bucket_s > 0.0 ? 1.0 / options.time_bucket_s : 0.0};
 
   if (!(options.voxel_size > 1e-3)) {
     out->reserve(in.size() / stride + 1);
     for (size_t i = 0; i < in.size(); i += stride) {
-      if (keep(in[i])) out->push_back(in[i]);
+      if (km.Keep(in[i])) out->push_back(in[i]);
     }
     stats.valid_points = stats.downsampled_points = out->size();
     return stats;
   }
 
-  if (++generation_ == 0) {  // wrapped after 2^32 scans: forget every stamp once
-    table_.assign(table_.size(), Slot());
-    generation_ = 1;
+  int threads = 1;
+#ifdef _OPENMP
+  threads = options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
+#endif
+  const size_t sampled = (in.size() + stride - 1) / stride;
+  if (threads > 1 && sampled >= kParallelPoints &&
+      in.size() <= std::numeric_limits<uint32_t>::max()) {
+    return RunParallel(in, t_begin, options, threads, out);
   }
-  acc_.clear();
-  Reserve(in.size() / stride / 8);
-  const float inv = static_cast<float>(1.0 / options.voxel_size);
-  const double t_ref = t_begin;
-  const double inv_bucket = options.time_bucket_s > 0.0 ? 1.0 / options.time_bucket_s : 0.0;
-  size_t mask = table_.size() - 1;
-  int shift = 64 - __builtin_ctzll(table_.size());
+
+  Grid& g = grids_[0];
+  g.Begin(in.size() / stride / 8);
   size_t valid = 0;
-  for (size_t i = 0; i < in.size(); i += stride) {
-    const TimedPoint& tp = in[i];
-    if (!keep(tp)) continue;
-    ++valid;
-    const uint64_t key =
-        PackKey(FloorToInt(tp.p.x() * inv), FloorToInt(tp.p.y() * inv), FloorToInt(tp.p.z() * inv),
-                static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
-    size_t h = Mix(key) >> shift;
-    while (table_[h].generation == generation_ && table_[h].key != key) h = (h + 1) & mask;
-    Slot& slot = table_[h];
-    uint32_t index = slot.index;
-    if (slot.generation != generation_) {
-      index = static_cast<uint32_t>(acc_.size());
-      slot = Slot{key, generation_, index};
-      acc_.emplace_back();
-      if (2 * acc_.size() > table_.size()) {
-        Reserve(acc_.size() * 2);  // moves slots, not indices
-        mask = table_.size() - 1;
-        shift = 64 - __builtin_ctzll(table_.size());
-      }
+  g.Accumulate<false>(km.t_ref, [&](auto&& add, auto&&) {
+    for (size_t i = 0; i < in.size(); i += stride) {
+      const TimedPoint& tp = in[i];
+      if (!km.Keep(tp)) continue;
+      ++valid;
+      add(km.Key(tp), tp, i);
     }
-    Accumulator& acc = acc_[index];
-    acc.x += tp.p.x();
-    acc.y += tp.p.y();
-    acc.z += tp.p.z();
-    acc.dt += tp.t - t_ref;
-    acc.intensity += tp.intensity;
-    ++acc.count;
+  });
+  stats.valid_points = valid;
+  out->resize(g.acc.size());
+  for (size_t i = 0; i < g.acc.size(); ++i) WriteMean(g.acc[i], km.t_ref, &(*out)[i]);
+  stats.downsampled_points = out->size();
+  return stats;
+}
+
+// Three phases in one parallel region. Each thread filters and keys its range of the input into
+// one list per owning thread. Each thread then accumulates the voxels it owns from its lists of
+// every range, ranges in input order: every voxel sums its points in the serial order. Last, each
+// thread writes its voxels' means where the serial grid has them: by first input index, behind the
+// voxels of every grid that appeared earlier.
+PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>& in, double t_begin,
+                                                  const PreprocessOptions& options, int threads,
+                                                  std::vector<TimedPoint>* out) {
+  PreprocessStats stats;
+  const size_t stride = static_cast<size_t>(std::max(1, options.point_stride));
+  const KeyMaker km{static_cast<float>(options.min_range * options.min_range),
+                    static_cast<float>(options.max_range * options.max_range),
+                    static_cast<float>(1.0 / options.voxel_size), t_begin,
+                    options.time_bucket_s > 0.0 ? 1.0 / options.time_bucket_s : 0.0};
+  const size_t sampled = (in.size() + stride - 1) / stride;
+  if (grids_.size() < static_cast<size_t>(threads)) grids_.resize(static_cast<size_t>(threads));
+  size_t cap = 0, valid = 0;
+  std::vector<size_t> count;  // count[range * nt + owner]: keys in that list
+#pragma omp parallel num_threads(threads)
+  {
+#ifdef _OPENMP
+    const size_t t = static_cast<size_t>(omp_get_thread_num());
+    const size_t nt = static_cast<size_t>(omp_get_num_threads());
+#else
+    const size_t t = 0, nt = 1;
+#endif
+#pragma omp single
+    {
+      cap = (sampled + nt - 1) / nt;  // the longest range
+      if (keys_.size() < nt * nt * cap) {
+        keys_.resize(nt * nt * cap);
+        kept_index_.resize(nt * nt * cap);
+      }
+      count.assign(nt * nt, 0);
+    }
+    std::vector<size_t> n(nt, 0);
+    for (size_t s = sampled * t / nt, end = sampled * (t + 1) / nt; s < end; ++s) {
+      const TimedPoint& tp = in[s * stride];
+      if (!km.Keep(tp)) continue;
+      const uint64_t key = km.Key(tp);
+      const size_t o = static_cast<size_t>(Owner(key, static_cast<int>(nt)));
+      const size_t at = (t * nt + o) * cap + n[o]++;
+      keys_[at] = key;
+      kept_index_[at] = static_cast<uint32_t>(s * stride);
+    }
+    for (size_t o = 0; o < nt; ++o) count[t * nt + o] = n[o];
+#pragma omp barrier
+    Grid& g = grids_[t];
+    g.Begin(sampled / 8 / nt);
+    g.Accumulate<true>(km.t_ref, [&](auto&& add, auto&& prefetch) {
+      constexpr size_t kAhead = 16;
+      for (size_t c = 0; c < nt; ++c) {
+        const size_t list = (c * nt + t) * cap;
+        const size_t end = list + count[c * nt + t];
+        for (size_t j = list; j < end; ++j) {
+          if (j + kAhead < end) prefetch(keys_[j + kAhead]);
+          const uint32_t i = kept_index_[j];
+          add(keys_[j], in[i], i);
+        }
+      }
+    });
+#pragma omp barrier
+#pragma omp single
+    {
+      size_t voxels = 0;
+      for (size_t c = 0; c < nt; ++c) voxels += grids_[c].acc.size();
+      for (size_t k = 0; k < nt * nt; ++k) valid += count[k];
+      out->resize(voxels);
+    }
+    // Each grid's first indices ascend: one pointer per other grid finds how many of its voxels
+    // came first.
+    std::vector<size_t> before(nt, 0);
+    for (size_t j = 0; j < g.acc.size(); ++j) {
+      const uint32_t f = g.first[j];
+      size_t pos = j;
+      for (size_t d = 0; d < nt; ++d) {
+        if (d == t) continue;
+        const std::vector<uint32_t>& other = grids_[d].first;
+        while (before[d] < other.size() && other[before[d]] < f) ++before[d];
+        pos += before[d];
+      }
+      WriteMean(g.acc[j], km.t_ref, &(*out)[pos]);
+    }
   }
   stats.valid_points = valid;
-  out->resize(acc_.size());
-  for (size_t i = 0; i < acc_.size(); ++i) {
-    const Accumulator& a = acc_[i];
-    const double inv_n = 1.0 / a.count;
-    TimedPoint& tp = (*out)[i];
-    tp.p = Eigen::Vector3f(static_cast<float>(a.x * inv_n), static_cast<float>(a.y * inv_n),
-                           static_cast<float>(a.z * inv_n));
-    tp.intensity = static_cast<float>(a.intensity * inv_n);
-    tp.t = t_ref + a.dt * inv_n;
-  }
   stats.downsampled_points = out->size();
   return stats;
 }

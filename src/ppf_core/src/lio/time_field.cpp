@@ -6,6 +6,10 @@
 #include <limits>
 #include <sstream>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 namespace ppf {
 namespace {
 
@@ -24,46 +28,32 @@ inline double ReadFloat32(const uint8_t* p) {
   return v;
 }
 
+template <typename T>
+double Load(const uint8_t* p) {
+  T v;
+  std::memcpy(&v, p, sizeof(T));
+  return static_cast<double>(v);
+}
+
 // Reads one element; the caller guarantees offset + size <= point_step within the buffer.
 double ReadAs(const uint8_t* p, FieldType type) {
   switch (type) {
-    case FieldType::kInt8: {
-      int8_t v;
-      std::memcpy(&v, p, 1);
-      return v;
-    }
+    case FieldType::kInt8:
+      return Load<int8_t>(p);
     case FieldType::kUint8:
-      return *p;
-    case FieldType::kInt16: {
-      int16_t v;
-      std::memcpy(&v, p, 2);
-      return v;
-    }
-    case FieldType::kUint16: {
-      uint16_t v;
-      std::memcpy(&v, p, 2);
-      return v;
-    }
-    case FieldType::kInt32: {
-      int32_t v;
-      std::memcpy(&v, p, 4);
-      return v;
-    }
-    case FieldType::kUint32: {
-      uint32_t v;
-      std::memcpy(&v, p, 4);
-      return v;
-    }
-    case FieldType::kFloat32: {
-      float v;
-      std::memcpy(&v, p, 4);
-      return v;
-    }
-    case FieldType::kFloat64: {
-      double v;
-      std::memcpy(&v, p, 8);
-      return v;
-    }
+      return Load<uint8_t>(p);
+    case FieldType::kInt16:
+      return Load<int16_t>(p);
+    case FieldType::kUint16:
+      return Load<uint16_t>(p);
+    case FieldType::kInt32:
+      return Load<int32_t>(p);
+    case FieldType::kUint32:
+      return Load<uint32_t>(p);
+    case FieldType::kFloat32:
+      return Load<float>(p);
+    case FieldType::kFloat64:
+      return Load<double>(p);
   }
   return std::numeric_limits<double>::quiet_NaN();
 }
@@ -74,25 +64,11 @@ bool FieldFits(const FieldDesc& f, uint32_t point_step) {
 }
 
 const char* TypeName(FieldType t) {
-  switch (t) {
-    case FieldType::kInt8:
-      return "int8";
-    case FieldType::kUint8:
-      return "uint8";
-    case FieldType::kInt16:
-      return "int16";
-    case FieldType::kUint16:
-      return "uint16";
-    case FieldType::kInt32:
-      return "int32";
-    case FieldType::kUint32:
-      return "uint32";
-    case FieldType::kFloat32:
-      return "float32";
-    case FieldType::kFloat64:
-      return "float64";
-  }
-  return "unknown";
+  // Indexed by the PointField datatype value (cloud_view.hpp), 1..8.
+  static const char* const kNames[] = {"unknown", "int8",   "uint8",   "int16",  "uint16",
+                                       "int32",   "uint32", "float32", "float64"};
+  const size_t i = static_cast<size_t>(t);
+  return i < sizeof(kNames) / sizeof(kNames[0]) ? kNames[i] : "unknown";
 }
 
 bool IsIntegerType(FieldType t) { return t != FieldType::kFloat32 && t != FieldType::kFloat64; }
@@ -106,16 +82,24 @@ const FieldDesc* FindTimeField(const CloudView& cloud, const std::string& config
   return nullptr;
 }
 
-// Visits the points in index order, row by row (no division per point): visit(i, point bytes).
+// Visits the points of the indices [begin, end) in order, row by row (no division per point):
+// visit(i, point bytes).
 template <typename Visit>
-void ForEachPoint(const CloudView& cloud, Visit&& visit) {
+void ForEachPointIn(const CloudView& cloud, size_t begin, size_t end, Visit&& visit) {
+  if (begin >= end) return;
   const uint64_t row_step =
       cloud.row_step == 0 ? static_cast<uint64_t>(cloud.width) * cloud.point_step : cloud.row_step;
-  size_t i = 0;
-  for (uint32_t row = 0; row < cloud.height; ++row) {
-    const uint8_t* p = cloud.data + row * row_step;
-    for (uint32_t col = 0; col < cloud.width; ++col, ++i, p += cloud.point_step) visit(i, p);
+  size_t i = begin;
+  uint32_t col = static_cast<uint32_t>(begin % cloud.width);
+  for (uint64_t row = begin / cloud.width; i < end; ++row, col = 0) {
+    const uint8_t* p = cloud.data + row * row_step + static_cast<uint64_t>(col) * cloud.point_step;
+    for (; col < cloud.width && i < end; ++col, ++i, p += cloud.point_step) visit(i, p);
   }
+}
+
+template <typename Visit>
+void ForEachPoint(const CloudView& cloud, Visit&& visit) {
+  ForEachPointIn(cloud, 0, static_cast<size_t>(cloud.width) * cloud.height, visit);
 }
 
 // The raw (unscaled) value of the time field of every point, in index order.
@@ -130,13 +114,22 @@ void ReadRawTimes(const CloudView& cloud, const FieldDesc& ft, std::vector<doubl
   }
 }
 
-// Point time = base + raw * scale, or the header stamp for every point when raw is null.
+// Point time = base + raw * scale, the raw value from the buffer of raw times or, without one,
+// straight from the point's time field (same value: one pass over the cloud less); the header
+// stamp for every point without a time field.
 struct TimeMap {
   const double* raw = nullptr;
+  const FieldDesc* field = nullptr;
   double base = 0.0;
   double scale = 1.0;
   double stamp_s = 0.0;
-  double At(size_t i) const { return raw ? base + raw[i] * scale : stamp_s; }
+  double At(size_t i, const uint8_t* p) const {
+    if (raw) return base + raw[i] * scale;
+    if (!field) return stamp_s;
+    const double v = field->type == FieldType::kFloat32 ? ReadFloat32(p + field->offset)
+                                                        : ReadAs(p + field->offset, field->type);
+    return base + v * scale;
+  }
 };
 
 // Where raw time zero lies: nowhere for absolute times (base 0), the header stamp for times
@@ -166,23 +159,33 @@ struct PointFields {
   bool IntensityFloat32() const { return intensity && intensity->type == FieldType::kFloat32; }
 };
 
+// What one thread's range of DecodeAllFloat32 kept: its points start at `begin` of the output.
+struct DecodedRange {
+  size_t begin = 0, kept = 0, dropped = 0;
+  double t_lo = 0.0, t_hi = 0.0;  // first-found min / max of the kept times (SetTimeSpan's)
+};
+
 // Every field float32 (nearly every driver): one pass writing straight into the output, with
 // the general path's values and validity test (a non-finite or > 1e30 coordinate fails
-// |c| <= 1e30; the time is the same double).
-void DecodeAllFloat32(const CloudView& cloud, const PointFields& f, const TimeMap& times,
-                      DecodedScan* out) {
-  out->points.resize(static_cast<size_t>(cloud.width) * cloud.height);
-  TimedPoint* dst = out->points.data();
-  size_t kept = 0;
+// |c| <= 1e30; the time is the same double). Decodes the indices [begin, end) compacted to
+// dst + begin.
+void DecodeAllFloat32Range(const CloudView& cloud, const PointFields& f, const TimeMap& times,
+                           size_t begin, size_t end, TimedPoint* dst, DecodedRange* range) {
+  range->begin = begin;
+  size_t kept = begin, dropped = 0;
+  double lo = 0.0, hi = 0.0;
   const uint32_t ox = f.x->offset, oy = f.y->offset, oz = f.z->offset;
   const uint32_t oi = f.intensity ? f.intensity->offset : 0;
-  ForEachPoint(cloud, [&](size_t i, const uint8_t* p) {
+  ForEachPointIn(cloud, begin, end, [&](size_t i, const uint8_t* p) {
     const double x = ReadFloat32(p + ox), y = ReadFloat32(p + oy), z = ReadFloat32(p + oz);
-    const double t = times.At(i);
+    const double t = times.At(i, p);
     if (!(std::abs(x) <= 1e30 && std::abs(y) <= 1e30 && std::abs(z) <= 1e30) || !std::isfinite(t)) {
-      ++out->dropped_nan;
+      ++dropped;
       return;
     }
+    if (kept == begin) lo = hi = t;
+    lo = std::min(lo, t);
+    hi = std::max(hi, t);
     TimedPoint& tp = dst[kept++];
     tp.p = Eigen::Vector3f(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
     tp.t = t;
@@ -193,6 +196,46 @@ void DecodeAllFloat32(const CloudView& cloud, const PointFields& f, const TimeMa
       tp.intensity = 0.f;
     }
   });
+  range->kept = kept - begin;
+  range->dropped = dropped;
+  range->t_lo = lo;
+  range->t_hi = hi;
+}
+
+// Fewer points than this decode on one thread: a 16-beam scan decodes faster than a fork/join.
+constexpr size_t kParallelDecodePoints = 32768;
+
+// DecodeAllFloat32Range over the whole cloud, split in index ranges over `threads`; the ranges'
+// points are then moved together in order and their time spans combined in order, which gives
+// the serial result (the first of equal minima / maxima, as SetTimeSpan finds them).
+void DecodeAllFloat32(const CloudView& cloud, const PointFields& f, const TimeMap& times,
+                      int threads, DecodedScan* out) {
+  const size_t n = static_cast<size_t>(cloud.width) * cloud.height;
+  out->points.resize(n);
+  TimedPoint* dst = out->points.data();
+  const int parts = threads > 1 && n >= kParallelDecodePoints ? threads : 1;
+  DecodedRange ranges[8];
+  const int used = std::min(parts, 8);
+  if (used == 1) {
+    DecodeAllFloat32Range(cloud, f, times, 0, n, dst, &ranges[0]);
+  } else {
+#pragma omp parallel for schedule(static, 1) num_threads(used)
+    for (int c = 0; c < used; ++c) {
+      DecodeAllFloat32Range(cloud, f, times, n * c / used, n * (c + 1) / used, dst, &ranges[c]);
+    }
+  }
+  size_t kept = 0;
+  bool any = false;
+  for (int c = 0; c < used; ++c) {
+    const DecodedRange& r = ranges[c];
+    if (r.begin != kept) std::copy(dst + r.begin, dst + r.begin + r.kept, dst + kept);
+    kept += r.kept;
+    out->dropped_nan += r.dropped;
+    if (r.kept == 0) continue;
+    out->t_begin = any ? std::min(out->t_begin, r.t_lo) : r.t_lo;
+    out->t_end = any ? std::max(out->t_end, r.t_hi) : r.t_hi;
+    any = true;
+  }
   out->points.resize(kept);
 }
 
@@ -211,7 +254,7 @@ void DecodeGeneral(const CloudView& cloud, const PointFields& f, const TimeMap& 
                                   ReadAs(p + f.y->offset, f.y->type),
                                   ReadAs(p + f.z->offset, f.z->type));
     TimedPoint tp;
-    tp.t = times.At(i);
+    tp.t = times.At(i, p);
     // float64 coordinates beyond float range would overflow the conversion: treat as invalid.
     if (!xyz.allFinite() || xyz.cwiseAbs().maxCoeff() > 1e30 || !std::isfinite(tp.t)) {
       ++out->dropped_nan;
@@ -410,29 +453,40 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
     return false;
   }
 
-  raw_t_.clear();
-  if (ft) ReadRawTimes(cloud, *ft, &raw_t_);
   // Detect once; a later change of layout (different field) triggers a new detection.
-  if (!info_.detected || info_.present != (ft != nullptr) ||
-      (ft && (ft->name != info_.name || ft->type != info_.type))) {
-    Detect(cloud, ft, raw_t_);
-  }
+  const bool detect = !info_.detected || info_.present != (ft != nullptr) ||
+                      (ft && (ft->name != info_.name || ft->type != info_.type));
+  raw_t_.clear();
+  // The raw times are needed as a whole only to detect the convention and for stamp-at-end
+  // relative times (TimeBase); otherwise the decode loop reads each point's time itself.
+  if (ft && (detect || (info_.stamp_at_end && !info_.absolute))) ReadRawTimes(cloud, *ft, &raw_t_);
+  if (detect) Detect(cloud, ft, raw_t_);
 
   out->has_time_field = ft != nullptr;
   TimeMap times;
   times.stamp_s = cloud.stamp_s;
   if (ft) {
-    times.raw = raw_t_.data();
+    if (raw_t_.empty()) {
+      times.field = ft;
+    } else {
+      times.raw = raw_t_.data();
+    }
     times.base = TimeBase(info_, cloud.stamp_s, raw_t_);
     times.scale = info_.unit_scale_s;
   }
-  if (fields.XyzFloat32() && (!fields.intensity || fields.IntensityFloat32())) {
-    DecodeAllFloat32(cloud, fields, times, out);
+  const bool all_float32 = fields.XyzFloat32() && (!fields.intensity || fields.IntensityFloat32());
+  if (all_float32) {
+    out->points.swap(spare_);  // resized, not cleared: every kept element is overwritten
+    int threads = 1;
+#ifdef _OPENMP
+    threads = num_threads_ > 0 ? num_threads_ : omp_get_max_threads();
+#endif
+    DecodeAllFloat32(cloud, fields, times, threads, out);
   } else {
     DecodeGeneral(cloud, fields, times, out);
   }
   if (!ft) ApplyNoTimePolicy(options_, cloud.stamp_s, out);
-  SetTimeSpan(out);
+  if (!ft || !all_float32) SetTimeSpan(out);  // DecodeAllFloat32 found the span of field times
   return true;
 }
 

@@ -28,6 +28,9 @@ struct PreprocessOptions {
   // Points of one voxel more than a bucket apart in time are not averaged (the sweep's seam);
   // measured from the earliest point time. Half a 10 Hz sweep; <= 0 disables the split.
   double time_bucket_s = 0.05;
+  // Threads for the voxel grid (0 = OpenMP default, 1 = serial). Any count gives the serial
+  // output exactly; large scans only (VoxelGridDownsampler::kParallelPoints).
+  int num_threads = 0;
 };
 
 struct PreprocessStats {
@@ -39,6 +42,10 @@ struct PreprocessStats {
 // (deterministic). Keeps its hash table between calls: construct once, call per scan.
 class VoxelGridDownsampler {
  public:
+  // Fewer (sampled) input points than this run serially: the fork/join would cost more than the
+  // second thread saves on a 16-beam scan.
+  static constexpr size_t kParallelPoints = 32768;
+
   // Returns the filtered (and, if voxel_size > 1 mm, downsampled) points of `in` in `out`.
   // t_begin: the earliest point time (DecodedScan::t_begin); time buckets count from it.
   PreprocessStats Run(const std::vector<TimedPoint>& in, double t_begin,
@@ -47,7 +54,7 @@ class VoxelGridDownsampler {
  private:
   struct Slot {
     uint64_t key = 0;
-    uint32_t generation = 0;  // slot is empty unless generation == generation_
+    uint32_t generation = 0;  // empty unless equal to the grid's generation
     uint32_t index = 0;       // into the accumulators
   };
   struct Accumulator {
@@ -55,11 +62,31 @@ class VoxelGridDownsampler {
     float intensity = 0.f;
     uint32_t count = 0;
   };
-  void Reserve(size_t expected_voxels);
+  // One open-addressing voxel table with its accumulators in order of first appearance. The serial
+  // path uses one; the parallel path one per thread, each owning a hash-chosen share of the voxels
+  // and seeing every point of them in input order, so that every voxel's sums are added in the
+  // serial order (floating-point sums depend on it).
+  struct Grid {
+    std::vector<Slot> table;
+    std::vector<Accumulator> acc;
+    std::vector<uint32_t> first;  // parallel path: input index of each voxel's first point
+    uint32_t generation = 0;
+    void Begin(size_t expected_voxels);
+    void Reserve(size_t expected_voxels);
+    // for_each(add, prefetch) calls add(key, point, input index) for this grid's points in input
+    // order; prefetch(key) may announce a later key.
+    template <bool kRecordFirst, typename ForEach>
+    void Accumulate(double t_ref, ForEach&& for_each);
+  };
+  PreprocessStats RunParallel(const std::vector<TimedPoint>& in, double t_begin,
+                              const PreprocessOptions& options, int threads,
+                              std::vector<TimedPoint>* out);
 
-  std::vector<Slot> table_;
-  std::vector<Accumulator> acc_;
-  uint32_t generation_ = 0;
+  std::vector<Grid> grids_{1};
+  // Parallel path: the kept points' keys and input indices, one list per (input range, owning
+  // thread), each in input order.
+  std::vector<uint64_t> keys_;
+  std::vector<uint32_t> kept_index_;
 };
 
 }  // namespace ppf

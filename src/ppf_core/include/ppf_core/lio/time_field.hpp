@@ -59,6 +59,15 @@ class TimeFieldDecoder {
   bool Decode(const CloudView& cloud, DecodedScan* out, std::string* error);
 
   const TimeFieldInfo& info() const { return info_; }
+  // Threads for decoding large clouds (0 = OpenMP default, 1 = serial); the result does not
+  // depend on it.
+  void set_num_threads(int num_threads) { num_threads_ = num_threads; }
+  // Takes the points of a scan the caller is done with: the next Decode() of an all-float32 cloud
+  // writes into them instead of a fresh vector the size of the scan, which it would zero-fill
+  // first (serially, before the threads start).
+  void Recycle(std::vector<TimedPoint>* points) {
+    if (points->capacity() > spare_.capacity()) spare_.swap(*points);
+  }
   void Reset() { info_ = TimeFieldInfo(); }
 
  private:
@@ -70,6 +79,8 @@ class TimeFieldDecoder {
   // Raw time values of the scan being decoded, kept between calls: a fresh buffer per scan is an
   // allocation (and page faults) the size of the scan.
   std::vector<double> raw_t_;
+  int num_threads_ = 1;
+  std::vector<TimedPoint> spare_;  // Recycle()'s; any size, contents overwritten
 };
 
 // Checks the layout of `cloud` (x/y/z present, offsets inside point_step, buffer size). Returns

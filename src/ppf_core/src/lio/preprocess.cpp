@@ -11,6 +11,9 @@
 namespace ppf {
 namespace {
 
+// The parallel grid's per-thread counters live on the stack: teams up to this size.
+constexpr size_t kMaxGridThreads = 64;
+
 // 20 bits per axis (+-2^19 voxels, +-262 km at 0.5 m: the scan is in the sensor frame) and
 // 4 bits of time bucket.
 uint64_t PackKey(int64_t x, int64_t y, int64_t z, int64_t bucket) {
@@ -157,6 +160,7 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
   threads = options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
 #endif
   const size_t sampled = (in.size() + stride - 1) / stride;
+  threads = std::min(threads, static_cast<int>(kMaxGridThreads));
   if (threads > 1 && sampled >= kParallelPoints &&
       in.size() <= std::numeric_limits<uint32_t>::max()) {
     return RunParallel(in, t_begin, options, threads, out);
@@ -195,9 +199,24 @@ PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>&
                     static_cast<float>(1.0 / options.voxel_size), t_begin,
                     options.time_bucket_s > 0.0 ? 1.0 / options.time_bucket_s : 0.0};
   const size_t sampled = (in.size() + stride - 1) / stride;
-  if (grids_.size() < static_cast<size_t>(threads)) grids_.resize(static_cast<size_t>(threads));
-  size_t cap = 0, valid = 0;
-  std::vector<size_t> count;  // count[range * nt + owner]: keys in that list
+  // Every buffer the regions share is sized here, on the calling thread, for any team size up to
+  // `threads` (nt * nt lists of ceil(sampled / nt) keys fit in threads * (sampled + threads)).
+  // No container grows inside a region: a sanitizer sees the region's start and end only through
+  // the OpenMP runtime, and a vector reallocated by whichever thread runs a `single` block reads
+  // what other threads wrote.
+  const size_t nt_max = static_cast<size_t>(threads);
+  if (grids_.size() < nt_max) grids_.resize(nt_max);
+  if (keys_.size() < nt_max * (sampled + nt_max)) {
+    keys_.resize(nt_max * (sampled + nt_max));
+    kept_index_.resize(nt_max * (sampled + nt_max));
+  }
+  // count[owner * nt + range]: keys in that list. Owner-major, so a thread's own counts are
+  // strided: a row-wise copy would compile to memcpy, which TSan intercepts and then reports
+  // against the caller's memset here (the runtime's fork and join are invisible to it).
+  std::vector<size_t> count(nt_max * nt_max, 0);
+  size_t nt_used = 1;
+  // Keying and accumulation: each thread keys its input range into one list per owner, then
+  // accumulates the voxels it owns from its lists of every range, ranges in input order.
 #pragma omp parallel num_threads(threads)
   {
 #ifdef _OPENMP
@@ -206,16 +225,9 @@ PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>&
 #else
     const size_t t = 0, nt = 1;
 #endif
-#pragma omp single
-    {
-      cap = (sampled + nt - 1) / nt;  // the longest range
-      if (keys_.size() < nt * nt * cap) {
-        keys_.resize(nt * nt * cap);
-        kept_index_.resize(nt * nt * cap);
-      }
-      count.assign(nt * nt, 0);
-    }
-    std::vector<size_t> n(nt, 0);
+    const size_t cap = (sampled + nt - 1) / nt;  // the longest range
+    if (t == 0) nt_used = nt;
+    size_t n[kMaxGridThreads] = {};
     for (size_t s = sampled * t / nt, end = sampled * (t + 1) / nt; s < end; ++s) {
       const TimedPoint& tp = in[s * stride];
       if (!km.Keep(tp)) continue;
@@ -225,7 +237,7 @@ PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>&
       keys_[at] = key;
       kept_index_[at] = static_cast<uint32_t>(s * stride);
     }
-    for (size_t o = 0; o < nt; ++o) count[t * nt + o] = n[o];
+    for (size_t o = 0; o < nt; ++o) count[o * nt + t] = n[o];
 #pragma omp barrier
     Grid& g = grids_[t];
     g.Begin(sampled / 8 / nt);
@@ -233,7 +245,7 @@ PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>&
       constexpr size_t kAhead = 16;
       for (size_t c = 0; c < nt; ++c) {
         const size_t list = (c * nt + t) * cap;
-        const size_t end = list + count[c * nt + t];
+        const size_t end = list + count[t * nt + c];
         for (size_t j = list; j < end; ++j) {
           if (j + kAhead < end) prefetch(keys_[j + kAhead]);
           const uint32_t i = kept_index_[j];
@@ -241,17 +253,21 @@ PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>&
         }
       }
     });
-#pragma omp barrier
-#pragma omp single
-    {
-      size_t voxels = 0;
-      for (size_t c = 0; c < nt; ++c) voxels += grids_[c].acc.size();
-      for (size_t k = 0; k < nt * nt; ++k) valid += count[k];
-      out->resize(voxels);
-    }
-    // Each grid's first indices ascend: one pointer per other grid finds how many of its voxels
-    // came first.
-    std::vector<size_t> before(nt, 0);
+  }
+  const size_t nt = nt_used;
+  size_t voxels = 0, valid = 0;
+  for (size_t c = 0; c < nt; ++c) voxels += grids_[c].acc.size();
+  for (size_t k = 0; k < nt * nt; ++k) valid += count[k];
+  out->resize(voxels);
+  // Each grid writes its voxels' means where the serial grid has them: by first input index,
+  // behind the voxels of every grid that appeared earlier (each grid's first indices ascend: one
+  // pointer per other grid finds how many of its voxels came first).
+  const int grids = static_cast<int>(nt);
+#pragma omp parallel for schedule(static, 1) num_threads(grids)
+  for (int gi = 0; gi < grids; ++gi) {
+    const size_t t = static_cast<size_t>(gi);
+    const Grid& g = grids_[t];
+    size_t before[kMaxGridThreads] = {};
     for (size_t j = 0; j < g.acc.size(); ++j) {
       const uint32_t f = g.first[j];
       size_t pos = j;

@@ -51,6 +51,9 @@ struct RansacResult {
   int degenerate_samples = 0;  // rejected samples (coincident or collinear)
   // Hypotheses rejected on a point subset (ransac.cpp): scored, but not counted in full.
   int pretest_rejected = 0;
+  // Hypotheses whose full count stopped once they could no longer beat the best one (ransac.cpp):
+  // scored, but with no exact count. Never changes the result.
+  int count_abandoned = 0;
 };
 
 // Adaptive RANSAC iteration count for inlier ratio w and confidence p, capped at max_iterations.

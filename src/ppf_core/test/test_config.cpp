@@ -281,21 +281,13 @@ TEST(ReferenceFile, EveryKeyIsCommented) {
 TEST(ReferenceFile, PresetsDifferOnlyInTheirSensorKeys) {
   const std::map<std::string, std::vector<std::string>> expected = {
       {"vlp16", {"preprocess.max_range: 100", "map.resolution: 1"}},
-      {"hdl32",
-       {"preprocess.max_range: 100", "ppf.plane_least_inliers: 150",
-        "ppf.incremental_fitting: true"}},
-      {"hdl64",
-       {"preprocess.max_range: 120", "ppf.plane_least_inliers: 400",
-        "ppf.incremental_fitting: true"}},
-      {"os1_64",
-       {"preprocess.max_range: 120", "ppf.plane_least_inliers: 400",
-        "ppf.incremental_fitting: true"}},
-      {"os1_128",
-       {"preprocess.max_range: 120", "ppf.plane_least_inliers: 600",
-        "ppf.incremental_fitting: true"}},
+      {"hdl32", {"preprocess.max_range: 100", "ppf.plane_least_inliers: 150"}},
+      {"hdl64", {"preprocess.max_range: 120", "ppf.plane_least_inliers: 400"}},
+      {"os1_64", {"preprocess.max_range: 120", "ppf.plane_least_inliers: 400"}},
+      {"os1_128", {"preprocess.max_range: 120", "ppf.plane_least_inliers: 600"}},
       {"kitti_raw",
        {"extrinsic.T_imu_lidar", "preprocess.max_range: 120", "time.stamp: start",
-        "imu.acc_scale: 1", "ppf.plane_least_inliers: 400", "ppf.incremental_fitting: true"}},
+        "imu.acc_scale: 1", "ppf.plane_least_inliers: 400"}},
   };
   for (const auto& [name, want] : expected) {
     Config preset, defaults;

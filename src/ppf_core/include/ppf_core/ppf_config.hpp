@@ -64,9 +64,9 @@ struct PpfConfig {
   // beams) left a third to a half of the points to kNN and discarded many; these defaults leave
   // about a fifth to kNN at a similar APE (docs/decisions.md, "Fit-remove-fit defaults").
   // Incremental fitting: try the window planes moved by the IMU-predicted motion before RANSAC.
-  // The paper uses it for >= 64 beams; PpfConfigForBeams() enables it from 32 beams up
-  // (docs/decisions.md, "Incremental fitting"); this plain default is the 16-beam one (off).
-  bool incremental_fitting = false;
+  // The paper uses it for >= 64 beams; here it is on for every beam count (docs/decisions.md,
+  // "Incremental fitting").
+  bool incremental_fitting = true;
   // Shape tests of a candidate plane (RANSAC or guess), not in the paper. RANSAC scores a plane
   // by its inlier count alone, and with a band as wide as delta a count can come from things that
   // are not surfaces. A rejected RANSAC candidate is treated like a failed refinement: its band
@@ -117,7 +117,7 @@ struct PpfConfig {
 };
 
 // Defaults for a sensor with `beams` rows (16, 32, 64, 128; other values round to the nearest
-// class). Density-dependent: plane_least_inliers and incremental_fitting.
+// class). Density-dependent: plane_least_inliers.
 PpfConfig PpfConfigForBeams(int beams);
 
 // Clamps out-of-range values to safe ones and returns a human-readable note per fix (empty if the

@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <list>
+#include <map>
 #include <random>
+#include <tuple>
 
 #include "ppf_core/lio/voxel_map.hpp"
 
@@ -153,6 +156,72 @@ TEST(VoxelMap, RemoveFarFromDropsDistantVoxels) {
   EXPECT_EQ(map.size(), 1u);
   std::vector<Eigen::Vector3f> got;
   EXPECT_EQ(map.GetClosest(Eigen::Vector3f(100.f, 0.f, 0.f), 1, 1.0, &got), 0u);
+}
+
+TEST(VoxelMap, EvictionsAndRemovalsKeepEveryLookupExact) {
+  // Thousands of voxels created, evicted (LRU, 300 at most) and removed (RemoveFarFrom) in a
+  // region small enough that the index's probe runs overlap: after every step the map holds
+  // exactly what a plain model of its rules holds, and kNN over it equals brute force over the
+  // model. Deleting from an open-addressing table must not lose entries behind the hole.
+  VoxelMapOptions opt;
+  opt.resolution = 0.5;
+  opt.nearby = NearbyType::kNearby27;
+  opt.max_voxels = 300;
+  opt.max_points_per_voxel = 3;
+  opt.min_point_distance = 0.0;
+  VoxelMap map(opt);
+  std::map<std::tuple<int, int, int>, std::vector<Eigen::Vector3f>> model;
+  std::list<std::tuple<int, int, int>> lru;  // front = most recently fed
+  std::mt19937 rng(11);
+  std::vector<Eigen::Vector3f> got;
+  for (int step = 0; step < 60; ++step) {
+    const Eigen::Vector3f centre(0.3f * step, 0.f, 0.f);
+    for (const Eigen::Vector3f& d : RandomCloud(200, 4.0f, &rng)) {
+      const Eigen::Vector3f p = centre + d;
+      map.Insert(p);
+      const VoxelKey k = ToVoxelKey(p, 2.0);
+      const auto key = std::make_tuple(k.x, k.y, k.z);
+      lru.remove(key);
+      lru.push_front(key);
+      if (model[key].size() < opt.max_points_per_voxel) model[key].push_back(p);
+      if (model.size() > opt.max_voxels) {
+        model.erase(lru.back());
+        lru.pop_back();
+      }
+    }
+    if (step % 7 == 6) {
+      map.RemoveFarFrom(centre.cast<double>(), 3.0);
+      for (auto it = lru.begin(); it != lru.end();) {
+        const auto [x, y, z] = *it;
+        const Eigen::Vector3d c((x + 0.5) * 0.5, (y + 0.5) * 0.5, (z + 0.5) * 0.5);
+        if ((c - centre.cast<double>()).squaredNorm() > 9.0) {
+          model.erase(*it);
+          it = lru.erase(it);
+        } else {
+          ++it;
+        }
+      }
+    }
+    ASSERT_EQ(map.num_voxels(), model.size()) << "step " << step;
+    size_t points = 0;
+    for (const auto& [key, pts] : model) points += pts.size();
+    ASSERT_EQ(map.size(), points) << "step " << step;
+    for (const Eigen::Vector3f& d : RandomCloud(50, 5.0f, &rng)) {
+      const Eigen::Vector3f q = centre + d;
+      map.GetClosest(q, 3, 0.5, &got);
+      std::vector<float> brute;
+      for (const auto& [key, pts] : model) {
+        for (const auto& p : pts) {
+          const float d2 = (p - q).squaredNorm();
+          if (d2 <= 0.25f) brute.push_back(d2);
+        }
+      }
+      std::sort(brute.begin(), brute.end());
+      brute.resize(std::min<size_t>(brute.size(), 3));
+      ASSERT_EQ(got.size(), brute.size()) << "step " << step;
+      for (size_t i = 0; i < got.size(); ++i) ASSERT_FLOAT_EQ((got[i] - q).squaredNorm(), brute[i]);
+    }
+  }
 }
 
 }  // namespace

@@ -67,18 +67,22 @@ class VoxelMap {
   void Insert(const Point& p) {
     if (!p.allFinite()) return;
     const VoxelKey key = ToVoxelKey(p, inv_resolution_);
-    auto it = index_.find(key);
-    if (it == index_.end()) {
+    const VoxelIt* found = index_.Find(key);
+    VoxelIt it;
+    if (found == nullptr) {
       lru_.push_front(Voxel{key, {}});
       lru_.front().points.reserve(std::min<size_t>(options_.max_points_per_voxel, 8));
-      it = index_.emplace(key, lru_.begin()).first;
+      it = lru_.begin();
+      index_.Insert(key, it);
       if (index_.size() > options_.max_voxels) EvictOldest();
-    } else if (it->second != lru_.begin()) {
-      lru_.splice(lru_.begin(), lru_, it->second);  // O(1), iterators stay valid
+    } else {
+      it = *found;
+      if (it != lru_.begin()) lru_.splice(lru_.begin(), lru_, it);  // O(1), iterators stay valid
     }
-    std::vector<Point>& pts = it->second->points;
+    std::vector<Point>& pts = it->points;
     if (pts.size() >= options_.max_points_per_voxel) return;
-    const float min_d2 = static_cast<float>(options_.min_point_distance * options_.min_point_distance);
+    const float min_d2 =
+        static_cast<float>(options_.min_point_distance * options_.min_point_distance);
     if (min_d2 > 0.f) {
       for (const Point& q : pts) {
         if ((q - p).squaredNorm() < min_d2) return;
@@ -108,8 +112,8 @@ class VoxelMap {
       size_t n = 0;
       // The query's position inside its voxel, in voxel units: a neighbour voxel's nearest face
       // lies (1 - f) or f away along each axis where it differs.
-      const Eigen::Vector3d f = query.cast<double>() * inv_resolution_ -
-                                Eigen::Vector3d(c.x, c.y, c.z);
+      const Eigen::Vector3d f =
+          query.cast<double>() * inv_resolution_ - Eigen::Vector3d(c.x, c.y, c.z);
       for (const VoxelKey& o : offsets_) {
         // A neighbour voxel that lies wholly beyond the search radius, or beyond the k-th best
         // distance once k points are held, cannot change the result: its hash lookup (the cost of
@@ -119,9 +123,9 @@ class VoxelMap {
           const double limit = n == k ? std::min<double>(best_d2[k - 1], max_d2) : max_d2;
           if (NeighbourLowerBound2(f, o) > limit * (1.0 + 1e-4)) continue;
         }
-        const auto it = index_.find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
-        if (it == index_.end()) continue;
-        for (const Point& p : it->second->points) {
+        const VoxelIt* it = index_.Find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
+        if (it == nullptr) continue;
+        for (const Point& p : (*it)->points) {
           const float d2 = (p - query).squaredNorm();
           if (!(d2 <= max_d2)) continue;
           if (n == k && !(d2 < best_d2[k - 1])) continue;
@@ -140,9 +144,9 @@ class VoxelMap {
     std::vector<std::pair<float, Point>> cand;
     cand.reserve(64);
     for (const VoxelKey& o : offsets_) {
-      const auto it = index_.find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
-      if (it == index_.end()) continue;
-      for (const Point& p : it->second->points) {
+      const VoxelIt* it = index_.Find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
+      if (it == nullptr) continue;
+      for (const Point& p : (*it)->points) {
         const float d2 = (p - query).squaredNorm();
         if (d2 <= max_d2) cand.emplace_back(d2, p);
       }
@@ -165,7 +169,7 @@ class VoxelMap {
                                (it->key.z + 0.5) * options_.resolution);
       if ((vc - center).squaredNorm() > r2) {
         num_points_ -= it->points.size();
-        index_.erase(it->key);
+        index_.Erase(it->key);
         it = lru_.erase(it);
       } else {
         ++it;
@@ -205,10 +209,85 @@ class VoxelMap {
     VoxelKey key;
     std::vector<Point> points;
   };
+  using VoxelIt = std::list<Voxel>::iterator;
+
+  // Key -> voxel, open addressing with linear probing (power-of-two capacity, at most half full,
+  // backward-shift deletion). A query looks up 7-27 voxels, most of them empty; std::unordered_map
+  // went through a bucket and a node for each, here a lookup reads one slot, or a few adjacent
+  // ones. Only lookups depend on it: nothing iterates over it, so its order changes no result.
+  class Index {
+   public:
+    const VoxelIt* Find(const VoxelKey& k) const {
+      if (size_ == 0) return nullptr;
+      for (size_t i = Home(k);; i = (i + 1) & mask_) {
+        const Slot& s = slots_[i];
+        if (!s.used) return nullptr;
+        if (s.key == k) return &s.voxel;
+      }
+    }
+    void Insert(const VoxelKey& k, VoxelIt v) {  // k must not be present
+      if (2 * (size_ + 1) > slots_.size()) Grow();
+      size_t i = Home(k);
+      while (slots_[i].used) i = (i + 1) & mask_;
+      slots_[i] = Slot{k, true, v};
+      ++size_;
+    }
+    void Erase(const VoxelKey& k) {
+      if (size_ == 0) return;
+      size_t i = Home(k);
+      for (;; i = (i + 1) & mask_) {
+        if (!slots_[i].used) return;
+        if (slots_[i].key == k) break;
+      }
+      // Backward shift: a later entry of the run moves into the hole when the hole lies on its
+      // probe path (its distance from home is at least the hole's distance behind it).
+      for (size_t j = (i + 1) & mask_; slots_[j].used; j = (j + 1) & mask_) {
+        if (((j - Home(slots_[j].key)) & mask_) >= ((j - i) & mask_)) {
+          slots_[i] = slots_[j];
+          i = j;
+        }
+      }
+      slots_[i] = Slot{};
+      --size_;
+    }
+    size_t size() const { return size_; }
+    void clear() {
+      slots_.clear();
+      mask_ = 0;
+      size_ = 0;
+    }
+
+   private:
+    struct Slot {
+      VoxelKey key;
+      bool used = false;
+      VoxelIt voxel;
+    };
+    size_t Home(const VoxelKey& k) const {
+      uint64_t h = static_cast<uint64_t>(static_cast<uint32_t>(k.x)) * 0x9E3779B97F4A7C15ULL ^
+                   static_cast<uint64_t>(static_cast<uint32_t>(k.y)) * 0xC2B2AE3D27D4EB4FULL ^
+                   static_cast<uint64_t>(static_cast<uint32_t>(k.z)) * 0x165667B19E3779F9ULL;
+      h ^= h >> 32;
+      return static_cast<size_t>(h) & mask_;
+    }
+    void Grow() {
+      std::vector<Slot> old;
+      old.swap(slots_);
+      slots_.resize(std::max<size_t>(64, old.size() * 2));
+      mask_ = slots_.size() - 1;
+      size_ = 0;
+      for (const Slot& s : old) {
+        if (s.used) Insert(s.key, s.voxel);
+      }
+    }
+    std::vector<Slot> slots_;
+    size_t mask_ = 0;
+    size_t size_ = 0;
+  };
 
   void EvictOldest() {
     num_points_ -= lru_.back().points.size();
-    index_.erase(lru_.back().key);
+    index_.Erase(lru_.back().key);
     lru_.pop_back();
   }
 
@@ -232,7 +311,7 @@ class VoxelMap {
   VoxelMapOptions options_;
   double inv_resolution_ = 2.0;
   std::list<Voxel> lru_;  // front = most recently fed
-  std::unordered_map<VoxelKey, std::list<Voxel>::iterator, VoxelKeyHash> index_;
+  Index index_;
   std::vector<VoxelKey> offsets_;
   size_t num_points_ = 0;
 };

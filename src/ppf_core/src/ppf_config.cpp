@@ -9,23 +9,19 @@ PpfConfig PpfConfigForBeams(int beams) {
   PpfConfig c;
   // After 0.5 m downsampling a 32-beam scan keeps a few thousand points; the reference configs
   // use 150 for 16 and 32 beams. 64 beams keep ~3x more points on the same surfaces.
-  // Incremental fitting: the reference enables it for 64 beams only. It is on for every class
-  // here: on 32 and 16 beams it was both faster and at least as accurate (docs/decisions.md,
-  // "Incremental fitting").
+  // Incremental fitting is not density-dependent any more: the reference enables it for 64 beams
+  // only, here its default (on) holds for every class, as on 32 and 16 beams it was both faster
+  // and at least as accurate (docs/decisions.md, "Incremental fitting").
   if (beams >= 96) {
     c.plane_least_inliers = 600;
-    c.incremental_fitting = true;
   } else if (beams >= 48) {
     c.plane_least_inliers = 400;
-    c.incremental_fitting = true;
   } else if (beams >= 24) {
     c.plane_least_inliers = 150;
-    c.incremental_fitting = true;
   } else {
     // Half the 32-beam count: a 16-beam scan keeps ~1000 points after downsampling, and 150 left
     // the walls of short corridors to kNN (docs/decisions.md, "Least inliers for 16 beams").
     c.plane_least_inliers = 80;
-    c.incremental_fitting = true;
   }
   return c;
 }

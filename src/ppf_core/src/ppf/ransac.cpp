@@ -76,11 +76,14 @@ int CountInliersSoa(const SoaPoints& p, const Hypothesis& h, float delta) {
   return CountRangeSoa(p, h, delta, 0, p.x.size());
 }
 
+// Scores of hypotheses with no exact count; both below any count, so neither becomes the best.
+constexpr int kPretestRejected = -1;  // the pre-test on the subset rejected it
+constexpr int kAbandoned = -2;        // its full count stopped early (CountInliersAbove)
+
 // A full count that stops as soon as h can no longer have more than `floor` inliers: it could
 // not replace the best hypothesis then, so its exact count does not matter (returns kAbandoned).
 // A hypothesis that can still exceed `floor` is counted exactly, so the result is the same as
 // with every count complete.
-constexpr int kAbandoned = -2;
 constexpr size_t kCountBlock = 512;
 
 int CountInliersAbove(const SoaPoints& p, const Hypothesis& h, float delta, int floor) {
@@ -174,7 +177,7 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
       if (pretest) {
         const long sub = CountInliersSoa(subset, batch[b], delta);
         if (2 * sub * static_cast<long>(n) < reference * m) {
-          batch_count[b] = -1;  // rejected: not counted, cannot become the best
+          batch_count[b] = kPretestRejected;
           continue;
         }
       }
@@ -183,7 +186,7 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
 
     for (int b = 0; b < filled; ++b) {
       ++result.iterations;
-      if (batch_count[b] == -1) ++result.pretest_rejected;
+      if (batch_count[b] == kPretestRejected) ++result.pretest_rejected;
       if (batch_count[b] == kAbandoned) ++result.count_abandoned;
       if (batch_count[b] > best_count) {
         best_count = batch_count[b];

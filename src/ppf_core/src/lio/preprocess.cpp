@@ -184,11 +184,11 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
   return stats;
 }
 
-// Three phases in one parallel region. Each thread filters and keys its range of the input into
-// one list per owning thread. Each thread then accumulates the voxels it owns from its lists of
-// every range, ranges in input order: every voxel sums its points in the serial order. Last, each
-// thread writes its voxels' means where the serial grid has them: by first input index, behind the
-// voxels of every grid that appeared earlier.
+// Two parallel regions. In the first, each thread filters and keys its range of the input into
+// one list per owning thread, then accumulates the voxels it owns from its lists of every range,
+// ranges in input order: every voxel sums its points in the serial order. In the second, after the
+// output is sized, each thread writes its voxels' means where the serial grid has them: by first
+// input index, behind the voxels of every grid that appeared earlier.
 PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>& in, double t_begin,
                                                   const PreprocessOptions& options, int threads,
                                                   std::vector<TimedPoint>* out) {
@@ -215,8 +215,6 @@ PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>&
   // against the caller's memset here (the runtime's fork and join are invisible to it).
   std::vector<size_t> count(nt_max * nt_max, 0);
   size_t nt_used = 1;
-  // Keying and accumulation: each thread keys its input range into one list per owner, then
-  // accumulates the voxels it owns from its lists of every range, ranges in input order.
 #pragma omp parallel num_threads(threads)
   {
 #ifdef _OPENMP
@@ -259,9 +257,8 @@ PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>&
   for (size_t c = 0; c < nt; ++c) voxels += grids_[c].acc.size();
   for (size_t k = 0; k < nt * nt; ++k) valid += count[k];
   out->resize(voxels);
-  // Each grid writes its voxels' means where the serial grid has them: by first input index,
-  // behind the voxels of every grid that appeared earlier (each grid's first indices ascend: one
-  // pointer per other grid finds how many of its voxels came first).
+  // Each grid's first indices ascend: one pointer per other grid finds how many of its voxels
+  // came first.
   const int grids = static_cast<int>(nt);
 #pragma omp parallel for schedule(static, 1) num_threads(grids)
   for (int gi = 0; gi < grids; ++gi) {

@@ -33,7 +33,7 @@ SEQ="$OUT/${SCENE}_${LIDAR}"
 
 step "simulate: ${DURATION} s ${SCENE} drive, ${LIDAR} LiDAR, 200 Hz IMU -> $SEQ"
 if ! have ppf_sim; then
-  echo "ppf_sim is not built yet: nothing to run. (See README: Status.)"
+  echo "ppf_sim is not built yet: nothing to run (scripts/setup.sh builds it)."
   exit 1
 fi
 rm -rf "$SEQ"

@@ -1,7 +1,20 @@
 #!/usr/bin/env bash
 # Sets up (Debian packages, npm test tools, Release build), runs every test with `colcon test`,
 # prints one line per test and ends with 'N passed, M failed'. Exits non-zero on any failure.
+# With no option this is exactly what CI runs (.ci/run).
+#   --quick   the Release build and its tests only: no sanitizer, soak-under-ASan or fuzzing
+#             stages (the same as PPF_SANITIZERS=0; the one-minute soak then runs with the
+#             Release tests)
 set -uo pipefail
+
+sanitizers="${PPF_SANITIZERS:-1}"
+for arg in "$@"; do
+  case "$arg" in
+    --quick) sanitizers=0 ;;
+    -h|--help) sed -n '2,7p' "$0"; exit 0 ;;
+    *) echo "usage: $0 [--quick]" >&2; exit 2 ;;
+  esac
+done
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -28,10 +41,9 @@ rm -rf build/*/Testing build-asan/*/Testing build-tsan/*/Testing
 # participants; the script removes only names no running process maps or holds open.
 scripts/clean_stale_shm.sh
 # Sanitizer and fuzzing stages (scripts/sanitize.sh, scripts/fuzz.sh): their tests and fuzzers
-# are counted in the summary like the others. On by default; PPF_SANITIZERS=0 skips them (a quick
-# local run). Measured on a fresh clone, 2 cores (log/ci_stages.txt has each stage's seconds):
-# see the README for the current figures. PPF_FUZZ_SECONDS: time per fuzzer (default 45).
-sanitizers="${PPF_SANITIZERS:-1}"
+# are counted in the summary like the others. On by default; --quick or PPF_SANITIZERS=0 skips
+# them (set at the top). Measured on a fresh clone, 2 cores (log/ci_stages.txt has each stage's
+# seconds): see docs/results.md. PPF_FUZZ_SECONDS: time per fuzzer (default 45).
 stages=log/ci_stages.txt
 : >"$stages"
 stage_seconds=0

@@ -71,7 +71,7 @@ struct PpfConfig {
   // by its inlier count alone, and with a band as wide as delta a count can come from things that
   // are not surfaces. A rejected RANSAC candidate is treated like a failed refinement: its band
   // goes to the scattered points (kNN), so nothing is lost; a rejected guess is skipped. Both
-  // tests are measured in README.md (fake skeleton planes); 0 turns a test off (the paper).
+  // tests are measured in docs/results.md (fake skeleton planes); 0 turns a test off (the paper).
   //
   // Thickness: reject when the RMS distance of the strict inliers from the plane exceeds this
   // fraction of delta. Points of a surface crowd the middle of the band; a slab cut through a

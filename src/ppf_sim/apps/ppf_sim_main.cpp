@@ -1,8 +1,13 @@
 // ppf_sim: deterministic LiDAR-inertial sequence generator writing a rosbag2 directory.
 #include <omp.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "cli_args.hpp"
 #include "ppf_sim/simulation.hpp"
@@ -68,6 +73,16 @@ Options
   --lidar-frame F       PointCloud2 frame_id                                       [lidar]
   --imu-frame F         Imu frame_id                                               [imu]
   --points-topic T      [/points]      --imu-topic T   [/imu]
+
+Disturbances (faults the filter's models do not contain; ground truth has them exactly, and
+sequence.yaml lists them; each option takes a comma-separated list):
+  --jolt T:YAW_DEG[:DX_M]   at sim time T the true path steps: the rest of it turns by YAW_DEG
+                        about the vertical through the position at T and moves DX_M along the
+                        heading. No IMU sample contains the step (a saturated gyro on a bump,
+                        a packet lost in a turn, a slipping mount).
+  --imu-gap T:S         no IMU sample in [T, T+S) (the LiDAR goes on)
+  --silence T:S         neither IMU samples nor sweeps overlapping [T, T+S) (a driver restart)
+  --gyro-range RAD_S    every gyro axis saturates at +-RAD_S
   --threads N           OpenMP threads for ray casting (default: all cores)
   --help                this text
 )";
@@ -172,6 +187,57 @@ void ParseNames(const CliArgs& args, SimConfig* cfg) {
   cfg->bag.imu_topic = args.Str("imu-topic", "/imu");
 }
 
+// "A:B[:C],A:B..." -> lists of 2 (or 3) numbers.
+std::vector<std::vector<double>> ColonLists(const CliArgs& args, const std::string& key,
+                                            size_t min_n, size_t max_n) {
+  std::vector<std::vector<double>> out;
+  if (!args.Has(key)) return out;
+  std::string all = args.Str(key, "");
+  size_t start = 0;
+  while (start <= all.size()) {
+    const size_t comma = std::min(all.find(',', start), all.size());
+    const std::string item = all.substr(start, comma - start);
+    std::vector<double> nums;
+    size_t p = 0;
+    while (p <= item.size()) {
+      const size_t colon = std::min(item.find(':', p), item.size());
+      const std::string num = item.substr(p, colon - p);
+      char* end = nullptr;
+      const double v = std::strtod(num.c_str(), &end);
+      if (num.empty() || *end != '\0' || !std::isfinite(v))
+        throw std::invalid_argument("--" + key + ": not a number: '" + num + "' in '" + item + "'");
+      nums.push_back(v);
+      p = colon + 1;
+    }
+    if (nums.size() < min_n || nums.size() > max_n)
+      throw std::invalid_argument("--" + key + ": '" + item + "' needs " + std::to_string(min_n) +
+                                  (max_n > min_n ? " or " + std::to_string(max_n) : "") +
+                                  " numbers separated by ':'");
+    out.push_back(nums);
+    start = comma + 1;
+  }
+  return out;
+}
+
+void ParseDisturbances(const CliArgs& args, SimConfig* cfg) {
+  ppf::sim::Disturbances& d = cfg->disturbances;
+  for (const auto& v : ColonLists(args, "jolt", 2, 3)) {
+    if (v[0] < 0.0) throw std::invalid_argument("--jolt: time must be >= 0");
+    d.jolts.push_back({v[0], v[1] * M_PI / 180.0, v.size() > 2 ? v[2] : 0.0});
+  }
+  for (const auto& v : ColonLists(args, "imu-gap", 2, 2)) {
+    if (v[0] < 0.0 || v[1] <= 0.0) throw std::invalid_argument("--imu-gap: T >= 0, S > 0");
+    d.imu_gaps.push_back({v[0], v[1]});
+  }
+  for (const auto& v : ColonLists(args, "silence", 2, 2)) {
+    if (v[0] < 0.0 || v[1] <= 0.0) throw std::invalid_argument("--silence: T >= 0, S > 0");
+    d.silences.push_back({v[0], v[1]});
+  }
+  d.gyro_range = args.Num("gyro-range", 0.0);
+  if (d.gyro_range < 0.0 || !std::isfinite(d.gyro_range))
+    throw std::invalid_argument("--gyro-range must be > 0 (0 = no saturation)");
+}
+
 void ApplyThreads(const CliArgs& args) {
   if (!args.Has("threads")) return;
   const double threads = args.Num("threads", 1);
@@ -203,7 +269,8 @@ int main(int argc, char** argv) {
          "static", "max-rate", "range-noise", "dropout", "max-range", "imu-rate", "gyro-noise",
          "accel-noise", "gyro-bias-rw", "accel-bias-rw", "gyro-bias-init", "accel-bias-init",
          "gravity", "extrinsic", "start-time", "lidar-frame", "imu-frame", "points-topic",
-         "imu-topic", "threads", "time-field", "stamp"},
+         "imu-topic", "threads", "time-field", "stamp", "jolt", "imu-gap", "silence",
+         "gyro-range"},
         {"help", "no-imu-noise", "moving-start"});
     if (args.Has("help")) {
       std::fputs(kHelp, stdout);
@@ -216,6 +283,7 @@ int main(int argc, char** argv) {
     ParseImu(args, &cfg);
     ParseMountAndTime(args, &cfg);
     ParseNames(args, &cfg);
+    ParseDisturbances(args, &cfg);
     ApplyThreads(args);
 
     std::printf("ppf_sim: scene %s, lidar %s, %.1f s, seed %llu -> %s (%s)\n",

@@ -132,6 +132,20 @@ void WriteSequenceInfo(const SimConfig& cfg, const ScanOptions& so, const LidarM
       << "  # s of the planned motion before time 0\n"
       << "  seed: " << cfg.seed << "\n"
       << "  start_time_ns: " << cfg.start_ns << "\n";
+  const Disturbances& d = cfg.disturbances;
+  if (!d.any()) return;
+  info << "disturbances:  # not in the IMU's or the LiDAR's data model; ground truth has them\n";
+  for (const Jolt& j : d.jolts) {
+    info << "  - {jolt_t: " << j.t << ", yaw_deg: " << j.yaw_rad * 180.0 / M_PI
+         << ", dx_m: " << j.dx_m << "}\n";
+  }
+  for (const TimeWindow& w : d.imu_gaps) {
+    info << "  - {imu_gap_t: " << w.t << ", length_s: " << w.length << "}\n";
+  }
+  for (const TimeWindow& w : d.silences) {
+    info << "  - {silence_t: " << w.t << ", length_s: " << w.length << "}\n";
+  }
+  if (d.gyro_range > 0.0) info << "  - {gyro_range_rad_s: " << d.gyro_range << "}\n";
 }
 
 }  // namespace
@@ -144,13 +158,27 @@ SimSummary RunSimulation(const SimConfig& cfg, std::ostream& log) {
   auto t0 = std::chrono::steady_clock::now();
   WorldOptions wo = cfg.world;
   wo.seed = cfg.seed;
-  const World world = BuildWorld(wo);
+  World world = BuildWorld(wo);
+  world.trajectory.SetJolts(cfg.disturbances.jolts);
   sum.seconds_world = Since(t0);
 
   t0 = std::chrono::steady_clock::now();
-  const std::vector<ImuMeasurement> imu =
+  std::vector<ImuMeasurement> imu =
       SimulateImu(world.trajectory, cfg.imu_rate, cfg.world.duration, cfg.imu_noise, cfg.seed,
                   cfg.gravity);
+  const Disturbances& dist = cfg.disturbances;
+  if (dist.gyro_range > 0.0) {
+    for (ImuMeasurement& m : imu) {
+      for (int k = 0; k < 3; ++k) m.gyro[k] = std::clamp(m.gyro[k], -dist.gyro_range, dist.gyro_range);
+    }
+  }
+  auto imu_dropped = [&](double t) {
+    for (const TimeWindow& w : dist.imu_gaps)
+      if (w.Contains(t)) return true;
+    for (const TimeWindow& w : dist.silences)
+      if (w.Contains(t)) return true;
+    return false;
+  };
   sum.seconds_imu = Since(t0);
   sum.imu_samples = static_cast<int>(imu.size());
 
@@ -171,6 +199,7 @@ SimSummary RunSimulation(const SimConfig& cfg, std::ostream& log) {
   size_t next_imu = 0;
   auto flush_imu = [&](int64_t until_ns) {
     for (; next_imu < imu.size() && imu_stamp(next_imu) <= until_ns; ++next_imu) {
+      if (imu_dropped(imu[next_imu].t)) continue;
       im.stamp_ns = imu_stamp(next_imu);
       for (int k = 0; k < 3; ++k) {
         im.gyro[k] = imu[next_imu].gyro[k];
@@ -180,6 +209,9 @@ SimSummary RunSimulation(const SimConfig& cfg, std::ostream& log) {
     }
   };
   for (int k = 0; k < n_scans; ++k) {
+    bool silent = false;
+    for (const TimeWindow& w : dist.silences) silent |= w.Overlaps(k * gen.period(), (k + 1) * gen.period());
+    if (silent) continue;
     t0 = std::chrono::steady_clock::now();
     const CloudBuffer cloud = gen.Generate(k);
     sum.seconds_scans += Since(t0);

@@ -107,6 +107,36 @@ Eigen::Vector3d EulerRatesToBodyRate(const Eigen::Vector3d& e, const Eigen::Vect
   return {r[0] - r[2] * sp, r[1] * cr + r[2] * sr * cp, -r[1] * sr + r[2] * cr * cp};
 }
 
+void Trajectory::SetJolts(std::vector<Jolt> jolts) {
+  std::sort(jolts.begin(), jolts.end(), [](const Jolt& a, const Jolt& b) { return a.t < b.t; });
+  jolt_times_.clear();
+  jolt_transforms_.clear();
+  jolt_yaw_.clear();
+  for (const Jolt& j : jolts) {
+    // Anchored on the path as the earlier jolts already moved it.
+    const Eigen::Isometry3d T = Pose(j.t);
+    const Eigen::Vector3d c = T.translation();
+    Eigen::Vector3d heading = T.linear().col(0);
+    heading.z() = 0.0;
+    heading = heading.norm() > 1e-9 ? heading.normalized() : Eigen::Vector3d::UnitX();
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    step.linear() = Eigen::AngleAxisd(j.yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    step.translation() = c - step.linear() * c + j.dx_m * heading;
+    const Eigen::Isometry3d before =
+        jolt_transforms_.empty() ? Eigen::Isometry3d::Identity() : jolt_transforms_.back();
+    const double yaw_before = jolt_yaw_.empty() ? 0.0 : jolt_yaw_.back();
+    jolt_times_.push_back(j.t);
+    jolt_transforms_.push_back(step * before);
+    jolt_yaw_.push_back(yaw_before + j.yaw_rad);
+  }
+}
+
+const Eigen::Isometry3d* Trajectory::JoltAt(double t) const {
+  const auto it = std::upper_bound(jolt_times_.begin(), jolt_times_.end(), t);
+  if (it == jolt_times_.begin()) return nullptr;
+  return &jolt_transforms_[static_cast<size_t>(it - jolt_times_.begin()) - 1];
+}
+
 TrajectoryState Trajectory::Evaluate(double t) const {
   double val[6], d1[6], d2[6];
   EvalChannels(t, 2, val, d1, d2);
@@ -118,6 +148,15 @@ TrajectoryState Trajectory::Evaluate(double t) const {
   s.a = {d2[3], d2[4], d2[5]};
   s.R = EulerToRotation(s.euler);
   s.omega = EulerRatesToBodyRate(s.euler, {d1[0], d1[1], d1[2]});
+  if (const Eigen::Isometry3d* J = JoltAt(t)) {
+    // A turn about the vertical: body rate unchanged, world vectors turned, yaw shifted.
+    const size_t i = static_cast<size_t>(J - jolt_transforms_.data());
+    s.p = *J * s.p;
+    s.v = J->linear() * s.v;
+    s.a = J->linear() * s.a;
+    s.R = J->linear() * s.R;
+    s.euler.z() += jolt_yaw_[i];
+  }
   return s;
 }
 
@@ -127,6 +166,7 @@ Eigen::Isometry3d Trajectory::Pose(double t) const {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = EulerToRotation({val[0], val[1], val[2]});
   T.translation() = Eigen::Vector3d(val[3], val[4], val[5]);
+  if (const Eigen::Isometry3d* J = JoltAt(t)) T = *J * T;
   return T;
 }
 

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <iosfwd>
 #include <string>
+#include <vector>
 
 #include "ppf_sim/bag_output.hpp"
 #include "ppf_sim/imu_simulator.hpp"
@@ -12,6 +13,26 @@
 #include "ppf_sim/world.hpp"
 
 namespace ppf::sim {
+
+// A stretch of time [t, t + length) of sim time.
+struct TimeWindow {
+  double t = 0.0;
+  double length = 0.0;
+  bool Contains(double x) const { return x >= t && x < t + length; }
+  bool Overlaps(double a, double b) const { return a < t + length && b > t; }
+};
+
+// Faults of the sensors and the path that the filter's models do not contain, with exact ground
+// truth: the ground-truth file always covers the whole run at every IMU sample time.
+struct Disturbances {
+  std::vector<Jolt> jolts;              // steps of the true path the IMU does not see
+  std::vector<TimeWindow> imu_gaps;     // no IMU sample in these windows (the LiDAR goes on)
+  std::vector<TimeWindow> silences;     // neither IMU samples nor sweeps overlapping them
+  double gyro_range = 0.0;              // rad/s; > 0: each gyro axis saturates at +-this
+  bool any() const {
+    return !jolts.empty() || !imu_gaps.empty() || !silences.empty() || gyro_range > 0.0;
+  }
+};
 
 struct SimConfig {
   WorldOptions world;
@@ -25,6 +46,7 @@ struct SimConfig {
   std::string out_dir;
   int64_t start_ns = 1700000000LL * 1000000000LL;  // absolute time of sim time 0
   uint64_t seed = 1;
+  Disturbances disturbances;
 
   SimConfig();
 };

@@ -22,6 +22,17 @@ struct TrajectoryState {
   Eigen::Vector3d euler = Eigen::Vector3d::Zero();  // roll, pitch, yaw (rad)
 };
 
+// A step of the true path at time t that no IMU sample contains: from t on, the rest of the path
+// is turned by yaw about the vertical through the position at t and moved by dx along the
+// heading there. A turn about the vertical leaves the specific force and the body rate unchanged
+// (gravity is vertical), so an IMU synthesized from the stepped path equals the undisturbed one:
+// what a gyro saturating on a bump, a packet lost in a sharp turn or a slipping mount leave.
+struct Jolt {
+  double t = 0.0;
+  double yaw_rad = 0.0;
+  double dx_m = 0.0;
+};
+
 // One additive sinusoid, amp * sin(2 pi freq t + phase), multiplied by the fade-in envelope.
 struct Shake {
   int channel = 0;  // 0..2: roll, pitch, yaw; 3..5: world x, y, z
@@ -46,6 +57,9 @@ class Trajectory {
   // curve, its derivatives and the shakes exactly those of the original at t + t0.
   void StartAt(double t0);
 
+  // Steps of the path (Jolt), in any order; replaces earlier ones.
+  void SetJolts(std::vector<Jolt> jolts);
+
   TrajectoryState Evaluate(double t) const;
   // T_world_imu at time t (cheaper than Evaluate: no derivatives).
   Eigen::Isometry3d Pose(double t) const;
@@ -55,6 +69,8 @@ class Trajectory {
 
  private:
   void EvalChannels(double t, int order, double val[6], double d1[6], double d2[6]) const;
+  // The world transform of the jolts up to t (identity before the first).
+  const Eigen::Isometry3d* JoltAt(double t) const;
 
   double dt_ = 0.1;
   double end_time_ = 0.0;
@@ -63,6 +79,9 @@ class Trajectory {
   std::vector<Shake> shakes_;
   double shake_start_ = 0.0;
   double shake_ramp_ = 1.0;
+  std::vector<double> jolt_times_;                 // ascending
+  std::vector<Eigen::Isometry3d> jolt_transforms_;  // all jolts up to jolt_times_[i], composed
+  std::vector<double> jolt_yaw_;                    // their summed yaw (radians)
 };
 
 // Z-Y-X (yaw, pitch, roll) rotation and the body rate for given Euler rates.

@@ -340,6 +340,13 @@ MapStats LioPpf::map_stats() const {
   s.capacity_points = impl_->map.capacity_points();
   return s;
 }
+std::vector<Eigen::Vector3f> LioPpf::LocalMapPoints() const {
+  std::vector<Eigen::Vector3f> out;
+  out.reserve(impl_->map.size());
+  const Eigen::Isometry3f T = impl_->WorldFromMap().cast<float>();
+  impl_->map.ForEachPoint([&](const Eigen::Vector3f& p) { out.push_back(T * p); });
+  return out;
+}
 const TimeFieldInfo& LioPpf::time_field_info() const { return impl_->decoder.info(); }
 bool LioPpf::initialized() const { return impl_->initialized; }
 bool LioPpf::lidar_only() const { return impl_->lidar_only; }

@@ -1,5 +1,5 @@
 // ppf_offline: runs the LIO-PPF core on a rosbag2 bag (sqlite3 or MCAP) without DDS, as fast as
-// the machine allows, and writes the trajectory and per-scan statistics.
+// the machine allows, and writes the trajectory, per-scan statistics and, if asked, the map.
 //
 //   ppf_offline --bag DIR --config FILE --mode knn|ppf --out traj.tum --stats stats.csv
 #include <unistd.h>
@@ -21,6 +21,7 @@
 #include "ppf_bag/bag.hpp"
 #include "ppf_core/config.hpp"
 #include "ppf_core/lio_ppf.hpp"
+#include "ppf_tools/map_export.hpp"
 #include "ppf_tools/offline_runner.hpp"
 #include "ppf_tools/scan_stats.hpp"
 #include "ppf_trajectory/evaluation.hpp"
@@ -61,6 +62,21 @@ Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) or a ROS 1 .bag wi
                         (stamp, status, T_world_lidar). Adds one copy of each scan's points
                         to the loop
   --dump-dir DIR        where --dump-scan writes (created; default: .)
+  --map-out FILE        the map: every scan with a pose (status ok or degenerate) adds its
+                        registered points (range-filtered, downsampled by scan_voxel_size,
+                        de-skewed) in the world frame to a voxel grid of --map-voxel; one
+                        point per voxel, the mean of its points. FILE.pcd: binary PCD (PCL,
+                        CloudCompare); FILE.ply: binary little-endian PLY (--ply-ascii for
+                        ASCII). Fields x y z intensity (float32); the core keeps no
+                        intensity, so "intensity" is the number of points in the voxel.
+                        Memory grows with the occupied voxels, not with the scans
+  --map-voxel M         voxel size of --map-out in metres (default: 0.1)
+  --local-map-out FILE  the core's local kNN map at the end (what the last scan was
+                        registered against, bounded by map.max_voxels and map_radius), as
+                        stored, world frame, intensity 1; .pcd or .ply as --map-out. In ppf
+                        mode the skeleton points are not in it (the core keeps them as
+                        plane patches)
+  --ply-ascii           write .ply maps as ASCII instead of binary
   --read-only           only read and decode the bag (every scan and IMU message), no core:
                         what reading the bag alone costs in time and memory (ppf_bench)
   --quiet               no progress bar and no per-run summary
@@ -75,6 +91,9 @@ struct Args {
       points_topic, imu_topic, dump_dir = ".";
   int threads = -1;
   long dump_scan = -1;
+  std::string map_out, local_map_out;
+  double map_voxel = 0.1;
+  bool ply_ascii = false;
   double imu_gap_begin = 0.0, imu_gap_length = 0.0;
   int drop_every = 0;
   double drop_begin = 0.0, drop_length = 0.0;
@@ -154,6 +173,19 @@ Args ParseArgs(int argc, char** argv) {
       if (v.empty() || *end != '\0' || a.dump_scan < 0) Fail("--dump-scan needs a scan index >= 0");
     } else if (arg == "--dump-dir") {
       a.dump_dir = value(i);
+    } else if (arg == "--map-out") {
+      a.map_out = value(i);
+    } else if (arg == "--local-map-out") {
+      a.local_map_out = value(i);
+    } else if (arg == "--map-voxel") {
+      const std::string v = value(i);
+      char* end = nullptr;
+      a.map_voxel = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(a.map_voxel >= 0.01 && a.map_voxel <= 100.0)) {
+        Fail("--map-voxel needs a size in metres from 0.01 to 100");
+      }
+    } else if (arg == "--ply-ascii") {
+      a.ply_ascii = true;
     } else if (arg == "--quiet") {
       a.quiet = true;
     } else if (arg == "--read-only") {
@@ -166,6 +198,14 @@ Args ParseArgs(int argc, char** argv) {
   if (!a.mode.empty() && a.mode != "knn" && a.mode != "ppf") Fail("--mode must be knn or ppf");
   if (a.format != "tum" && a.format != "kitti") Fail("--format must be tum or kitti");
   if (a.frame != "imu" && a.frame != "lidar") Fail("--frame must be imu or lidar");
+  const auto check_map_file = [&](const char* flag, const std::string& file) {
+    ppf::tools::MapFormat format;
+    if (!file.empty() && !ppf::tools::MapFormatForFile(file, a.ply_ascii, &format)) {
+      Fail(std::string(flag) + " needs a file name ending in .pcd or .ply, not '" + file + "'");
+    }
+  };
+  check_map_file("--map-out", a.map_out);
+  check_map_file("--local-map-out", a.local_map_out);
   return a;
 }
 
@@ -290,7 +330,7 @@ ppf::Config LoadConfig(const Args& args) {
   if (args.mode == "knn") config.mode = ppf::Mode::kKnn;
   if (args.mode == "ppf") config.mode = ppf::Mode::kPpf;
   if (args.threads >= 0) config.num_threads = args.threads;
-  if (args.dump_scan >= 0) config.output_deskewed_points = true;
+  if (args.dump_scan >= 0 || !args.map_out.empty()) config.output_deskewed_points = true;
   config.log = [](ppf::LogLevel level, const std::string& msg) {
     if (level >= ppf::LogLevel::kInfo) std::cerr << "\nppf_offline: " << msg << "\n";
   };
@@ -325,6 +365,15 @@ void WritePlanes(const std::string& file, const std::vector<ppf::ScanResult>& re
          << sp.centroid.y() << "," << sp.centroid.z() << "," << sp.num_inliers << "\n";
     }
   }
+}
+
+// --map-out, --local-map-out (the extension was checked with the arguments).
+void WriteMap(const std::string& file, const std::vector<ppf::tools::MapPoint>& points,
+              bool ply_ascii) {
+  ppf::tools::MapFormat format = ppf::tools::MapFormat::kPcdBinary;
+  ppf::tools::MapFormatForFile(file, ply_ascii, &format);
+  std::string error;
+  if (!ppf::tools::WriteMapFile(file, points, format, &error)) Fail(error);
 }
 
 // The per-run summary on stdout, and every scan that reset or was rejected.
@@ -378,8 +427,10 @@ int main(int argc, char** argv) {
   std::string dump_error = args.dump_scan >= 0 ? "no scan " + std::to_string(args.dump_scan) +
                                                      " in the bag"
                                                : "";
-  if (args.dump_scan >= 0) {
+  ppf::tools::MapAccumulator map(args.map_voxel);
+  if (args.dump_scan >= 0 || !args.map_out.empty()) {
     options.on_result = [&](size_t index, ppf::ScanResult* r) {
+      if (!args.map_out.empty()) map.AddResult(*r);
       if (static_cast<long>(index) == args.dump_scan) {
         if (r->pose_valid) {
           DumpScan(args.dump_dir, index, *r, config.mode == ppf::Mode::kPpf);
@@ -391,6 +442,13 @@ int main(int argc, char** argv) {
       }
       r->deskewed_points_lidar = {};
       r->deskewed_point_labels = {};
+    };
+  }
+
+  std::vector<ppf::tools::MapPoint> local_map;
+  if (!args.local_map_out.empty()) {
+    options.on_finish = [&](const ppf::LioPpf& lio) {
+      local_map = ppf::tools::ToMapPoints(lio.LocalMapPoints());
     };
   }
 
@@ -408,6 +466,22 @@ int main(int argc, char** argv) {
   if (!args.stats.empty()) WriteStats(args.stats, run.results);
   if (!args.planes.empty()) WritePlanes(args.planes, run.results);
   if (!args.quiet) PrintRunSummary(args, config, run);
+  if (!args.map_out.empty()) {
+    WriteMap(args.map_out, map.Points(), args.ply_ascii);
+    if (!args.quiet) {
+      std::cout << "  map: " << map.voxels() << " points (" << std::defaultfloat
+                << std::setprecision(6) << args.map_voxel << " m voxels, " << map.points_added()
+                << " registered points of " << map.scans_added() << " scans) -> " << args.map_out
+                << "\n";
+    }
+  }
+  if (!args.local_map_out.empty()) {
+    WriteMap(args.local_map_out, local_map, args.ply_ascii);
+    if (!args.quiet) {
+      std::cout << "  local map: " << local_map.size() << " points -> " << args.local_map_out
+                << "\n";
+    }
+  }
   if (!dump_error.empty()) Fail("--dump-scan: " + dump_error);
   return run.trajectory.empty() ? 2 : 0;
 }

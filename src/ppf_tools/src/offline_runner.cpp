@@ -115,6 +115,7 @@ OfflineRun RunOffline(const std::string& bag_path, const Config& config,
   consume(lio->Process(/*flush=*/true));
   run.lidar_only = lio->lidar_only();
   run.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (options.on_finish) options.on_finish(*lio);
   return run;
 }
 

@@ -229,6 +229,10 @@ class LioPpf {
 
   const Config& config() const;
   MapStats map_stats() const;
+  // A copy of the kNN map's points in the world frame of the results (the current T_world_map
+  // applied): what the scans are registered against now, bounded as MapStats says. In kPpf the
+  // skeleton points are not in it (they are kept as plane patches, not points).
+  std::vector<Eigen::Vector3f> LocalMapPoints() const;
   const TimeFieldInfo& time_field_info() const;
   bool initialized() const;
   bool lidar_only() const;  // LiDAR-only mode decided (imu.mode none, or auto without IMU)

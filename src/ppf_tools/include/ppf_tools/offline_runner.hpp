@@ -32,6 +32,8 @@ struct OfflineOptions {
   // Called with each result (index in bag order from 0) before it is stored: e.g. to write one
   // scan's points and drop the others' so a long run does not keep every cloud.
   std::function<void(size_t, ScanResult*)> on_result;
+  // Called once after the last scan was processed, with the core as it ends (its local map).
+  std::function<void(const LioPpf&)> on_finish;
   // > 0: no IMU sample reaches the core from imu_gap_begin_s to imu_gap_begin_s +
   // imu_gap_length_s after the first message's stamp (a dropout, as the node's test peer's
   // --imu-gap makes one over DDS). Dropped samples count in OfflineRun::imu_dropped.

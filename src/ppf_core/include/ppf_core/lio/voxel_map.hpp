@@ -183,6 +183,15 @@ class VoxelMap {
     num_points_ = 0;
   }
 
+  // Calls fn(point) for every stored point, most recently fed voxel first (read-only: a map
+  // export, not a query path).
+  template <typename Fn>
+  void ForEachPoint(Fn&& fn) const {
+    for (const Voxel& v : lru_) {
+      for (const Point& p : v.points) fn(p);
+    }
+  }
+
   size_t size() const { return num_points_; }  // stored points
   size_t num_voxels() const { return index_.size(); }
   // The bound size() can never exceed.

@@ -206,6 +206,9 @@ Args ParseArgs(int argc, char** argv) {
   };
   check_map_file("--map-out", a.map_out);
   check_map_file("--local-map-out", a.local_map_out);
+  if (a.read_only && !(a.map_out.empty() && a.local_map_out.empty())) {
+    Fail("--map-out and --local-map-out need the core: not with --read-only");
+  }
   return a;
 }
 

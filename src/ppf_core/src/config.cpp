@@ -133,6 +133,7 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("imu.acc_bias_noise", &c->noise.acc_bias);
   t.Add("imu.gravity_dir_noise", &c->noise.gravity_dir);
   t.Add("imu.max_gap", &c->max_imu_gap_s);
+  t.Add("imu.max_gap_warn", &c->imu_max_gap_warn_s);
   t.Add("imu.max_gap_bridge", &c->max_imu_gap_bridge_s);
   t.Add("imu.loss_timeout", &c->imu_loss_timeout_s);
   t.Add("imu.loss_prior_pos_std", &c->imu_loss_prior_pos_std);
@@ -152,6 +153,12 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("lidar_only.prior_pos_std", &c->lidar_only.prior_pos_std);
   t.Add("lidar_only.redeskew_iterations", &c->lidar_only.redeskew_iterations);
   t.Add("lidar_only.redeskew_min_change", &c->lidar_only.redeskew_min_change);
+
+  t.Add("consistency.check", &c->consistency.check);
+  t.Add("consistency.fit_ratio", &c->consistency.fit_ratio);
+  t.Add("consistency.fit_points", &c->consistency.fit_points);
+  t.Add("consistency.min_gain", &c->consistency.min_gain);
+  t.Add("consistency.turn_deg", &c->consistency.turn_deg);
 
   t.Add("iekf.max_iterations", &c->iekf.max_iterations);
   t.Add("iekf.convergence_rot", &c->iekf.convergence_rot_rad);
@@ -253,6 +260,14 @@ void ValidatePreprocessMapAndTime(Config* c, Fixer& fix) {
   fix(!(c->imu_auto_wait_s >= 0.0), "imu.auto_wait", &c->imu_auto_wait_s, 2.0);
 }
 
+void ValidateConsistency(Config* c, Fixer& fix) {
+  ConsistencyOptions* co = &c->consistency;
+  fix(!(co->fit_ratio >= 0.0 && co->fit_ratio <= 1.0), "consistency.fit_ratio", &co->fit_ratio, 0.7);
+  fix(co->fit_points < 100, "consistency.fit_points", &co->fit_points, 100);
+  fix(!(co->min_gain >= 0.0 && co->min_gain <= 1.0), "consistency.min_gain", &co->min_gain, 0.1);
+  fix(!(co->turn_deg >= 0.0 && co->turn_deg <= 45.0), "consistency.turn_deg", &co->turn_deg, 7.5);
+}
+
 void ValidateLidarOnly(Config* c, Fixer& fix) {
   LidarOnlyOptions* lo = &c->lidar_only;
   fix(!(lo->good_fit >= 0.0 && lo->good_fit <= 1.0), "lidar_only.good_fit", &lo->good_fit, 0.8);
@@ -283,6 +298,7 @@ void ValidateImu(Config* c, Fixer& fix) {
   fix(!(c->init.moving_start_max_gravity_error > 0.0), "imu.moving_start_max_gravity_error",
       &c->init.moving_start_max_gravity_error, 0.5);
   fix(!(c->max_imu_gap_s > 0.0), "imu.max_gap", &c->max_imu_gap_s, 0.5);
+  fix(!(c->imu_max_gap_warn_s > 0.0), "imu.max_gap_warn", &c->imu_max_gap_warn_s, 0.1);
   fix(!(c->max_imu_gap_bridge_s >= 0.0), "imu.max_gap_bridge", &c->max_imu_gap_bridge_s, 0.0);
   fix(!(c->imu_loss_timeout_s > 0.0), "imu.loss_timeout", &c->imu_loss_timeout_s, 0.25);
   fix(!(c->imu_loss_prior_pos_std > 0.0), "imu.loss_prior_pos_std", &c->imu_loss_prior_pos_std,
@@ -341,6 +357,7 @@ std::vector<std::string> ValidateConfig(Config* c) {
   Fixer fix(&notes);
   ValidatePreprocessMapAndTime(c, fix);
   ValidateLidarOnly(c, fix);
+  ValidateConsistency(c, fix);
   ValidateImu(c, fix);
   ValidateIekfAndKnn(c, fix);
   for (const std::string& note : ValidatePpfConfig(&c->ppf)) notes.push_back(note);  // PPF

@@ -1,5 +1,6 @@
 #include "ppf_core/lio_ppf.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -54,8 +55,10 @@ void LioPpf::Impl::ResetFilter(const std::string& reason) {
   init.Reset();
   motion.Reset();
   recent_fits.clear();
+  lio_fits.clear();
   map.clear();
   imu.clear();
+  imu_conflict = ImuConflict();
   state = NavState();
   last_scan_end = -std::numeric_limits<double>::infinity();
   bridged_gaps.clear();
@@ -84,6 +87,15 @@ void LioPpf::Impl::AddImu(const ImuSample& s) {
   // kNone: ignored even before the first scan has made the decision (DecideImuMode).
   const bool finite = std::isfinite(s.stamp_s) && s.angular_velocity.allFinite() &&
                       s.linear_acceleration.allFinite();
+  if (finite && config.imu_mode != ImuMode::kNone) {
+    // The stream's own clock, whether the sample is used or not (JudgeClockOffset).
+    ++imu_arrived_since_scan;
+    imu_arrived_stamp = s.stamp_s;
+    if (clock_offset) {
+      ++input_stats.imu_clock_offset_dropped;
+      return;
+    }
+  }
   if (lidar_only && lidar_only_auto && finite) StartLateImu(s);
   if (lidar_only || config.imu_mode == ImuMode::kNone) {
     ++ignored_imu;
@@ -99,15 +111,253 @@ void LioPpf::Impl::AddImu(const ImuSample& s) {
     ++dropped_imu;
     return;
   }
-  JudgeImuGap(s);
-  last_imu_stamp = s.stamp_s;
-  imu.push_back(s);
-  if (!initialized) FeedInitializer(s);
+  if (TakeImuDuplicate(s)) return;
+  IntegrateImu(s);
   // Bounded buffer even if no scan ever arrives (a moving-start window trims its own).
   while (imu.size() > 2 && imu[1].stamp_s < state.stamp_s - 1.0 && initialized && !moving_init) {
     imu.pop_front();
   }
   while (imu.size() > 20000) imu.pop_front();
+}
+
+// A sample taken into the filter's stream: judged against the one before, buffered, and fed to
+// the initialization while it runs.
+void LioPpf::Impl::IntegrateImu(const ImuSample& s) {
+  CountImuGap(s);
+  JudgeImuGap(s);
+  last_imu_stamp = s.stamp_s;
+  imu.push_back(s);
+  if (!initialized) FeedInitializer(s);
+}
+
+// Duplicate stamps. The same stamp and values as the newest sample (a redelivery): dropped and
+// counted. Other values: a conflict. Arrival order says nothing about which copy is right (a
+// faulty or hostile sender may send its copy first), so the copies are held, none integrated,
+// until every copy of the stamp after them is in (a later stamp arrived); then
+// ResolveImuConflict decides. Returns true if `s` was taken here (held or dropped).
+bool LioPpf::Impl::TakeImuDuplicate(const ImuSample& s) {
+  const auto same = [&s](const ImuSample& o) {
+    return o.angular_velocity == s.angular_velocity &&
+           o.linear_acceleration == s.linear_acceleration;
+  };
+  const auto hold = [&](std::vector<ImuSample>* copies) {
+    if (std::any_of(copies->begin(), copies->end(), same)) {
+      ++input_stats.imu_duplicates;
+    } else if (copies->size() < 8) {  // bounded
+      copies->push_back(s);
+    }
+  };
+  ImuConflict& c = imu_conflict;
+  if (c.active) {
+    const double t = c.copies.front().stamp_s;
+    if (s.stamp_s < (c.next.empty() ? t : c.next.front().stamp_s)) {
+      // Out of order: the held copies go, the sample is judged as any other (time going back).
+      c = ImuConflict();
+      return false;
+    }
+    if (s.stamp_s == t) {
+      hold(&c.copies);
+    } else if (c.next.empty() || s.stamp_s == c.next.front().stamp_s) {
+      hold(&c.next);
+    } else {
+      ResolveImuConflict();
+      if (!imu_conflict.active) return false;
+      imu_conflict.next.push_back(s);  // the stamp after it was in conflict as well
+    }
+    return true;
+  }
+  if (imu.empty() || s.stamp_s != imu.back().stamp_s) return false;
+  if (same(imu.back())) {
+    ++input_stats.imu_duplicates;
+    return true;
+  }
+  c.active = true;
+  c.copies = {imu.back(), s};
+  c.next.clear();
+  c.has_prev = imu.size() >= 2;
+  if (c.has_prev) {
+    c.prev = imu[imu.size() - 2];
+    last_imu_stamp = c.prev.stamp_s;  // what the stream has settled up to
+  }
+  imu.pop_back();
+  // The static initialization has seen the first copy: its window starts again after the
+  // conflict rather than average a value that may be wrong.
+  if (!initialized) init.Reset();
+  return true;
+}
+
+// Decides a conflict once the next stamp's copies are in: each copy is compared with the values
+// its neighbours give at its stamp (interpolated between the settled sample before and a copy of
+// the next stamp; the closest such pair counts). The copy clearly closest (at most half the
+// distance of any other) is integrated, otherwise none is: one sample period without a sample
+// costs less than a wrong one. Counted, one WARN line (rate limited). The next stamp is then
+// integrated, or, with several values itself, becomes the next conflict.
+void LioPpf::Impl::ResolveImuConflict() {
+  // Units: 1 m/s^2 of acceleration weighs as much as 0.1 rad/s of turn rate.
+  constexpr double kAccUnit = 1.0, kGyroUnit = 0.1;
+  ImuConflict c = std::move(imu_conflict);
+  imu_conflict = ImuConflict();
+  const double t = c.copies.front().stamp_s;
+  const auto distance = [&](const ImuSample& copy) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const ImuSample& n : c.next) {
+      Eigen::Vector3d acc = n.linear_acceleration, gyro = n.angular_velocity;
+      if (c.has_prev && n.stamp_s > c.prev.stamp_s) {
+        const double w = (t - c.prev.stamp_s) / (n.stamp_s - c.prev.stamp_s);
+        acc = (1.0 - w) * c.prev.linear_acceleration + w * n.linear_acceleration;
+        gyro = (1.0 - w) * c.prev.angular_velocity + w * n.angular_velocity;
+      }
+      best = std::min(best, (copy.linear_acceleration - acc).norm() / kAccUnit +
+                                (copy.angular_velocity - gyro).norm() / kGyroUnit);
+    }
+    return best;
+  };
+  size_t best = 0;
+  double best_d = std::numeric_limits<double>::infinity(), second_d = best_d;
+  for (size_t i = 0; i < c.copies.size(); ++i) {
+    const double d = distance(c.copies[i]);
+    if (d < best_d) {
+      second_d = best_d;
+      best_d = d;
+      best = i;
+    } else if (d < second_d) {
+      second_d = d;
+    }
+  }
+  const bool keep = 2.0 * best_d < second_d;
+  ++input_stats.imu_conflicts;
+  if (!keep) ++input_stats.imu_conflicts_unresolved;
+  size_t held = 0;
+  if (imu_conflict_log.Allow(t, &held)) {
+    const ImuSample& a = c.copies[0];
+    const ImuSample& b = c.copies[1];
+    std::ostringstream os;
+    os << "IMU samples in conflict at t=" << t << ": " << c.copies.size()
+       << " copies with different values (acc differs by "
+       << (a.linear_acceleration - b.linear_acceleration).norm() << " m/s^2, gyro by "
+       << (a.angular_velocity - b.angular_velocity).norm() << " rad/s): ";
+    if (keep) {
+      os << "kept the copy that arrived " << (best == 0 ? "first" : best == 1 ? "second" : "later")
+         << ", consistent with the samples either side";
+    } else {
+      os << "kept none (no copy clearly consistent with the samples either side)";
+    }
+    if (held > 0) os << " (" << held << " more conflicts since the last line)";
+    Log(LogLevel::kWarn, os.str());
+  }
+  if (keep) IntegrateImu(c.copies[best]);
+  if (c.next.size() == 1) {
+    IntegrateImu(c.next.front());
+    return;
+  }
+  imu_conflict.active = true;
+  imu_conflict.copies = std::move(c.next);
+  imu_conflict.has_prev = !imu.empty();
+  if (imu_conflict.has_prev) imu_conflict.prev = imu.back();
+}
+
+// Gaps longer than imu.max_gap_warn are counted; each is named in one WARN line, here up to
+// imu.max_gap (JudgeImuGap's lines name the longer ones when the filter runs).
+void LioPpf::Impl::CountImuGap(const ImuSample& s) {
+  const double gap = s.stamp_s - last_imu_stamp;
+  if (!(gap > config.imu_max_gap_warn_s) || !std::isfinite(gap)) return;
+  ++input_stats.imu_gaps;
+  input_stats.imu_gap_longest_s = std::max(input_stats.imu_gap_longest_s, gap);
+  imu_gap_longest_since_result_s = std::max(imu_gap_longest_since_result_s, gap);
+  const bool named_later = gap > config.max_imu_gap_s && (initialized || moving_init || imu_lost);
+  size_t held = 0;
+  if (named_later || !imu_gap_log.Allow(s.stamp_s, &held)) return;
+  std::ostringstream os;
+  os << "IMU gap of " << gap << " s (no sample from t=" << last_imu_stamp << " to " << s.stamp_s
+     << ") > imu.max_gap_warn " << config.imu_max_gap_warn_s << " s";
+  if (held > 0) os << " (" << held << " more gaps since the last line)";
+  Log(LogLevel::kWarn, os.str());
+}
+
+// Clock offset: the scan's end against the newest IMU sample, when samples arrived since the
+// previous scan (both streams live; a stalled IMU is an IMU loss, not an offset). Only an IMU
+// behind is judged: an IMU ahead is what a core lagging behind its input queues sees too.
+void LioPpf::Impl::JudgeClockOffset(const DecodedScan& scan) {
+  const bool live = imu_arrived_since_scan > 0;
+  imu_arrived_since_scan = 0;
+  if (!live || scan.points.empty()) return;
+  const double offset = scan.t_end - imu_arrived_stamp;
+  const bool off = offset >= kClockOffsetS;
+  if (clock_offset && off) clock_offset_s = offset;
+  clock_offset_votes = off != clock_offset ? clock_offset_votes + 1 : 0;
+  if (clock_offset_votes < kClockOffsetScans) return;
+  clock_offset_votes = 0;
+  if (off) {
+    EnterClockOffset(offset, scan);
+    return;
+  }
+  clock_offset = false;
+  clock_offset_s = 0.0;
+  std::ostringstream os;
+  os << "IMU and LiDAR clocks agree again (scan end " << scan.t_end << ", newest IMU sample "
+     << imu_arrived_stamp << "): the IMU is used from its next sample on";
+  Log(LogLevel::kInfo, os.str());
+}
+
+// The IMU's clock runs seconds behind the LiDAR's: its samples never cover a scan, so LIO (or
+// its initialization) would wait for good. The scans go on LiDAR-only: with the IMU-loss
+// fallback if LIO ran (map, gravity and biases kept; LIO resumes when the clocks agree), else
+// as without an IMU (the IMU then takes over as a late IMU). The samples are not used meanwhile.
+void LioPpf::Impl::EnterClockOffset(double offset_s, const DecodedScan& scan) {
+  clock_offset = true;
+  clock_offset_s = offset_s;
+  std::ostringstream os;
+  os << "IMU clock " << offset_s << " s behind the LiDAR's (scan ending at t=" << scan.t_end
+     << ", newest IMU sample t=" << imu_arrived_stamp << ", both streams live for "
+     << kClockOffsetScans << " scans)";
+  if (initialized && map_initialized && !moving_init && !lidar_only) {
+    if (imu_lost) {
+      Log(LogLevel::kWarn, os.str() + ": continuing LiDAR-only until the clocks agree");
+    } else {
+      EnterImuLoss(os.str());
+    }
+    imu_back = false;
+    return;
+  }
+  if (!lidar_only) {
+    if (late_imu) {
+      // The LiDAR-only map and world stay; the late IMU's window starts again later.
+      late_imu = false;
+      moving_poses.clear();
+    } else {
+      ClearMovingInit();
+      init.Reset();
+    }
+    moving_init = false;
+    moving_refused = false;
+    lidar_only = true;
+    lidar_only_auto = true;
+    initialized = true;
+    imu.clear();
+    imu_conflict = ImuConflict();
+  }
+  Log(LogLevel::kWarn, os.str() +
+                           ": continuing LiDAR-only (constant-velocity prediction) until the "
+                           "clocks agree; the IMU then takes over without a reset");
+}
+
+// The IMU stream covers scans up to here: while copies of the newest stamp are in conflict,
+// only up to the sample before them.
+double LioPpf::Impl::ImuCoveredUntil() const {
+  if (!imu_conflict.active) return last_imu_stamp;
+  return imu_conflict.has_prev ? imu_conflict.prev.stamp_s
+                               : -std::numeric_limits<double>::infinity();
+}
+
+// The input counts of a result: what happened since the previous result.
+void LioPpf::Impl::AddInputCounts(ScanResult* r) {
+  r->imu_gaps = input_stats.imu_gaps - input_reported.imu_gaps;
+  r->imu_gap_longest_s = imu_gap_longest_since_result_s;
+  r->imu_conflicts = input_stats.imu_conflicts - input_reported.imu_conflicts;
+  r->imu_conflicts_unresolved =
+      input_stats.imu_conflicts_unresolved - input_reported.imu_conflicts_unresolved;
+  input_reported = input_stats;
+  imu_gap_longest_since_result_s = 0.0;
 }
 
 // What the time since the last sample means: time going back resets the filter; a gap restarts a
@@ -184,11 +434,41 @@ uint64_t LioPpf::Impl::AddScan(const CloudView& cloud) {
   } else if (!decoder.Decode(cloud, &q.scan, &error)) {
     q.rejected = true;
     q.error = error;
+  } else if (q.scan.dropped_bad_time > 0) {
+    JudgeBadPointTimes(&q);  // logs for itself (rate limited)
+    if (!q.rejected) JudgeClockOffset(q.scan);
+    q.decode_ms = MsSince(t0);
+    scans.push_back(std::move(q));
+    return last_input_id;
+  } else {
+    JudgeClockOffset(q.scan);
   }
   if (q.rejected) Log(LogLevel::kWarn, "scan rejected: " + q.error);
   q.decode_ms = MsSince(t0);
   scans.push_back(std::move(q));
   return last_input_id;
+}
+
+// Point times outside the plausible sweep window were dropped by the decoder (time_field.hpp).
+// Most of the scan's points: the rest cannot be trusted either, the scan is skipped (rejected,
+// nothing changes: no reset, no wait for IMU coverage far ahead). One line, rate limited.
+void LioPpf::Impl::JudgeBadPointTimes(QueuedScan* q) {
+  const DecodedScan& scan = q->scan;
+  std::ostringstream os;
+  os << scan.dropped_bad_time << " of " << scan.input_points
+     << " point times outside the plausible sweep window of the scan stamped " << q->stamp_s
+     << " (from " << kEarlyPointTimeS << " s before a scan-start stamp to 2 x time.scan_period = "
+     << 2.0 * config.time.scan_period_s << " s after it)";
+  input_stats.points_bad_time += scan.dropped_bad_time;
+  if (scan.dropped_bad_time >= scan.points.size()) {
+    q->rejected = true;
+    q->error = os.str() + ": scan skipped";
+    ++input_stats.scans_bad_time;
+  }
+  size_t held = 0;
+  if (!bad_time_log.Allow(q->stamp_s, &held)) return;
+  if (held > 0) os << " (" << held << " more such scans since the last line)";
+  Log(LogLevel::kWarn, q->rejected ? "scan rejected: " + q->error : os.str() + ": points dropped");
 }
 
 ScanResult LioPpf::Impl::Rejected(const QueuedScan& q) const {
@@ -198,6 +478,9 @@ ScanResult LioPpf::Impl::Rejected(const QueuedScan& q) const {
   r.status = Status::kRejected;
   r.reason = "malformed cloud: " + q.error;
   r.map_size = map.size();
+  r.input_points = q.scan.input_points;
+  r.dropped_nan = q.scan.dropped_nan;
+  r.points_bad_time = q.scan.dropped_bad_time;
   return r;
 }
 
@@ -210,7 +493,8 @@ std::vector<ScanResult> LioPpf::Impl::Process(bool flush) {
     // the last IMU sample by more than max_imu_gap_s are not held back forever.
     const bool imu_stalled = scans.back().stamp_s - last_imu_stamp > config.max_imu_gap_s;
     fallback_scan = !q.rejected && NeedsFallback(q.scan, imu_stalled || flush);
-    if (!q.rejected && !flush && !imu_stalled && !fallback_scan && last_imu_stamp < q.scan.t_end) {
+    if (!q.rejected && !flush && !imu_stalled && !fallback_scan &&
+        ImuCoveredUntil() < q.scan.t_end) {
       break;
     }
     // Reset notices belong before the first scan processed after the reset.
@@ -223,6 +507,7 @@ std::vector<ScanResult> LioPpf::Impl::Process(bool flush) {
       out.push_back(ProcessOne(q));
       if (moving) MovingInitStep(&out.back());
     }
+    AddInputCounts(&out.back());
     decoder.Recycle(&q.scan.points);
     scans.pop_front();
   }
@@ -299,6 +584,7 @@ void LioPpf::Impl::StartLateImu(const ImuSample& s) {
   moving_scans = kMovingWarmupScans - 1;
   last_imu_stamp = s.stamp_s;  // no gap to the (absent) previous sample
   imu.clear();
+  imu_conflict = ImuConflict();
   std::ostringstream os;
   os << "IMU data at t=" << s.stamp_s << " after a LiDAR-only start: LiDAR-inertial once "
      << config.init.moving_start_window_s
@@ -331,6 +617,11 @@ void LioPpf::Reset() {
   impl_->last_imu_stamp = -std::numeric_limits<double>::infinity();
   impl_->ResetFilter("");
   impl_->decoder.Reset();
+  impl_->clock_offset = false;
+  impl_->clock_offset_s = 0.0;
+  impl_->clock_offset_votes = 0;
+  impl_->imu_arrived_stamp = -std::numeric_limits<double>::infinity();
+  impl_->imu_arrived_since_scan = 0;
 }
 const Config& LioPpf::config() const { return impl_->config; }
 MapStats LioPpf::map_stats() const {
@@ -347,6 +638,7 @@ std::vector<Eigen::Vector3f> LioPpf::LocalMapPoints() const {
   impl_->map.ForEachPoint([&](const Eigen::Vector3f& p) { out.push_back(T * p); });
   return out;
 }
+InputStats LioPpf::input_stats() const { return impl_->input_stats; }
 const TimeFieldInfo& LioPpf::time_field_info() const { return impl_->decoder.info(); }
 bool LioPpf::initialized() const { return impl_->initialized; }
 bool LioPpf::lidar_only() const { return impl_->lidar_only; }

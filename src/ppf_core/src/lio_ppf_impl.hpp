@@ -58,6 +58,27 @@ struct LioPpf::Impl {
     *reason += what;
   }
 
+  // At most one line per interval of data time for a recurring input fault, telling how many
+  // were held back since the last one: a driver repeating a fault every scan or sample must not
+  // flood the log. Data time, not wall time: replays at any speed log the same lines.
+  struct LogLimiter {
+    double interval_s = 5.0;
+    double next_s = -std::numeric_limits<double>::infinity();
+    size_t held = 0;
+    // True if a line may go out at data time t (a clock jump back also lets it out); *held_back
+    // is then how many were held back before it.
+    bool Allow(double t, size_t* held_back) {
+      if (t < next_s && t >= next_s - 2.0 * interval_s) {
+        ++held;
+        return false;
+      }
+      *held_back = held;
+      held = 0;
+      next_s = t + interval_s;
+      return true;
+    }
+  };
+
   explicit Impl(const Config& c);
 
   // lio_ppf.cpp: input and queue.
@@ -67,8 +88,17 @@ struct LioPpf::Impl {
   void ResetFilter(const std::string& reason);
   void AddImu(const ImuSample& s);
   void JudgeImuGap(const ImuSample& s);  // AddImu's steps
+  void IntegrateImu(const ImuSample& s);
+  bool TakeImuDuplicate(const ImuSample& s);
+  void ResolveImuConflict();
+  void CountImuGap(const ImuSample& s);
+  double ImuCoveredUntil() const;
+  void AddInputCounts(ScanResult* r);
+  void JudgeClockOffset(const DecodedScan& scan);
+  void EnterClockOffset(double offset_s, const DecodedScan& scan);
   void FeedInitializer(const ImuSample& s);
   uint64_t AddScan(const CloudView& cloud);
+  void JudgeBadPointTimes(QueuedScan* q);
   ScanResult Rejected(const QueuedScan& q) const;
   std::vector<ScanResult> Process(bool flush);
   bool DecideImuMode(bool flush);
@@ -85,7 +115,11 @@ struct LioPpf::Impl {
               double t_end);
   void StartMap(bool lidar, double t_end, ScanResult* r);
   void SplitScan(ScanResult* r);
-  IekfReport Register(double t_end, Eigen::Isometry3d* T_world_lidar_out, ScanResult* r);
+  IekfReport Register(double t_end, bool lidar, Eigen::Isometry3d* T_world_lidar_out,
+                      ScanResult* r);
+  IekfReport OverruleIfInconsistent(const NavState& predicted, const IekfOptions& iekf,
+                                    const std::vector<ResidualProvider*>& providers,
+                                    const IekfReport& rep, ScanResult* r);
   void SetUpdateStatus(const IekfReport& rep, bool lidar, ScanResult* r) const;
   void FinishLidarOnly(const CoarseAlignment& coarse, double t_end, ScanResult* r);
   void ExtendMap(const IekfReport& rep, const Eigen::Isometry3d& T_world_lidar, ScanResult* r);
@@ -151,6 +185,8 @@ struct LioPpf::Impl {
   double acc_scale = 1.0;          // of the initialization in use
   ConstantVelocityModel motion;    // LiDAR-only prediction (IMU frame poses)
   std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
+  std::deque<double> lio_fits;     // LIO: posterior fits of the last scans (consistency check)
+  bool contradicted = false;       // this scan's pose fits the map poorly and no guess did better
   size_t ignored_imu = 0;
   // IMU loss (lio_ppf.hpp): LIO running, but scans are registered LiDAR-only until IMU samples
   // are back and cover the next scan; then propagation re-anchors at the last LiDAR-only pose.
@@ -169,6 +205,33 @@ struct LioPpf::Impl {
   double last_imu_stamp = -std::numeric_limits<double>::infinity();
   double last_scan_end = -std::numeric_limits<double>::infinity();
   size_t dropped_imu = 0;
+  LogLimiter bad_time_log;
+  // IMU samples with the newest sample's stamp but other values: which copy is right is decided
+  // once the next stamp is complete (ResolveImuConflict); meanwhile none of them, and none of the
+  // next stamp's, is in `imu`.
+  struct ImuConflict {
+    bool active = false;
+    bool has_prev = false;
+    ImuSample prev;                  // the settled sample before the stamp in conflict
+    std::vector<ImuSample> copies;   // in arrival order
+    std::vector<ImuSample> next;     // the copies of the stamp after it
+  } imu_conflict;
+  LogLimiter imu_conflict_log{1.0};
+  LogLimiter imu_gap_log{1.0};
+  InputStats input_stats;     // totals
+  InputStats input_reported;  // totals when the last result was handed out
+  double imu_gap_longest_since_result_s = 0.0;
+  // Clock offset (lio_ppf.hpp): the IMU stream live (valid samples arriving between scans) but
+  // its newest sample kClockOffsetS or more behind every scan's end for kClockOffsetScans scans.
+  // Meanwhile the samples are not used and the scans are registered LiDAR-only; the same count
+  // of scans in agreement ends it.
+  static constexpr double kClockOffsetS = 1.0;
+  static constexpr int kClockOffsetScans = 10;
+  bool clock_offset = false;
+  double clock_offset_s = 0.0;     // the last offset measured (scan end - newest IMU sample)
+  int clock_offset_votes = 0;      // consecutive scans contradicting the current judgement
+  double imu_arrived_stamp = -std::numeric_limits<double>::infinity();  // used or not
+  size_t imu_arrived_since_scan = 0;
   int scans_since_prune = 0;
   uint64_t last_input_id = 0;
   Eigen::Vector3d gyro_at_scan_end = Eigen::Vector3d::Zero();  // raw, of the scan in ProcessOne

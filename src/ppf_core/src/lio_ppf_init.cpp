@@ -170,6 +170,7 @@ void LioPpf::Impl::ClearMovingInit() {
   map.clear();
   motion.Reset();
   recent_fits.clear();
+  lio_fits.clear();
   if (tracker) tracker->Reset();
   knn->Reset();
   scans_since_prune = 0;

@@ -2,11 +2,13 @@
 // (first scan) or register the scan (coarse alignment when LiDAR-only, PPF split, iterated EKF),
 // judge the update, extend the map, and fill the result in the gravity-aligned world frame.
 #include <algorithm>
+#include <cmath>
 #include <sstream>
 #include <vector>
 
 #include "lio_ppf_impl.hpp"
 #include "ppf_core/lio/deskew.hpp"
+#include "ppf_core/lio/so3.hpp"
 
 namespace ppf {
 
@@ -19,11 +21,18 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   r.scan_begin_s = scan.t_begin;
   r.input_points = scan.input_points;
   r.dropped_nan = scan.dropped_nan;
+  r.points_bad_time = scan.dropped_bad_time;
   r.map_size = map.size();
   // The moving-start initialization registers its scans as LiDAR-only does.
   const bool lidar = lidar_only || moving_init || fallback_scan;
   r.lidar_only = lidar_only || late_imu;
   if (!AcceptScan(scan, lidar, &r)) return r;
+  if (clock_offset) {
+    r.imu_clock_offset_s = clock_offset_s;
+    std::ostringstream os;
+    os << "IMU clock " << clock_offset_s << " s behind the LiDAR's: IMU not used";
+    Append(&r.reason, os.str());
+  }
   if (fallback_scan) {
     SeedFallback();
     fallback_dt = scan.t_end - state.stamp_s;
@@ -71,7 +80,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   }
   SplitScan(&r);
   Eigen::Isometry3d T_world_lidar;
-  const IekfReport rep = Register(t_end, &T_world_lidar, &r);
+  const IekfReport rep = Register(t_end, lidar, &T_world_lidar, &r);
   SetUpdateStatus(rep, lidar, &r);
   if (lidar) FinishLidarOnly(coarse, t_end, &r);
   r.pose_valid = true;
@@ -269,7 +278,7 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
 
 // The iterated EKF with this scan's residual providers. The updated pose (T_world_lidar_out) is
 // the one at which the splitter and the providers close the scan.
-IekfReport LioPpf::Impl::Register(double t_end, Eigen::Isometry3d* T_world_lidar_out,
+IekfReport LioPpf::Impl::Register(double t_end, bool lidar, Eigen::Isometry3d* T_world_lidar_out,
                                   ScanResult* r) {
   std::vector<ResidualProvider*> providers;
   providers.push_back(knn.get());
@@ -277,7 +286,18 @@ IekfReport LioPpf::Impl::Register(double t_end, Eigen::Isometry3d* T_world_lidar
   for (ResidualProvider* p : providers) p->BeginScan(frame);
   IekfOptions iekf = config.iekf;
   if (t_end - map_init_stamp_s < iekf.refined_gate_after_s) iekf.refined_gate = 0.0;
-  const IekfReport rep = IekfUpdate(iekf, config.T_imu_lidar, providers, &state);
+  const NavState predicted = state;
+  contradicted = false;
+  IekfReport rep = IekfUpdate(iekf, config.T_imu_lidar, providers, &state);
+  // The LiDAR-only scans were aligned from guesses already; the IMU's prediction is checked here.
+  if (!lidar && config.consistency.check) {
+    const auto t0 = Clock::now();
+    rep = OverruleIfInconsistent(predicted, iekf, providers, rep, r);
+    r->timings.guesses = MsSince(t0);
+  }
+  r->correction_rot_deg =
+      SO3Log(predicted.R_world_imu.transpose() * state.R_world_imu).norm() * 180.0 / M_PI;
+  r->correction_pos_m = (state.p_world_imu - predicted.p_world_imu).norm();
   r->timings.residuals = rep.residuals_ms;
   r->timings.update = rep.update_ms;
   r->iterations = rep.iterations;
@@ -303,6 +323,103 @@ IekfReport LioPpf::Impl::Register(double t_end, Eigen::Isometry3d* T_world_lidar
   return rep;
 }
 
+// Config::consistency: the posterior's fit against the recent scans'; far worse, guesses around
+// it (and the prediction) are aligned coarsely, and a clearly better one re-anchors the
+// prediction, from which the update runs again. The rows of a scan count too little, and are
+// gated too narrowly, to move the state by what the IMU got wrong without knowing; the coarse
+// alignment has neither limit, and the covariance is widened only along the correction it found,
+// so a heading correction leaves roll and pitch with the IMU.
+IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
+                                                const IekfOptions& iekf,
+                                                const std::vector<ResidualProvider*>& providers,
+                                                const IekfReport& rep, ScanResult* r) {
+  const ConsistencyOptions& co = config.consistency;
+  const Eigen::Isometry3d& T_il = config.T_imu_lidar;
+  if (rep.skipped) return rep;
+  const ScanFrame sample = SampleFrame(frame, co.fit_points);
+  const FitScore fit = ScoreFit(sample, state.T_world_imu() * T_il, config.lidar_only, config.knn);
+  r->fit = fit.fit;
+  auto remember = [this](double f) {
+    lio_fits.push_back(f);
+    if (lio_fits.size() > 10) lio_fits.pop_front();
+  };
+  if (lio_fits.size() < 5) {  // no baseline yet (a young map fits unevenly)
+    remember(fit.fit);
+    return rep;
+  }
+  std::vector<double> sorted(lio_fits.begin(), lio_fits.end());
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double baseline = sorted[sorted.size() / 2];
+  if (fit.fit >= co.fit_ratio * baseline) {
+    remember(fit.fit);
+    return rep;
+  }
+
+  // Guesses: the update's pose, the prediction, and the update's pose turned about the vertical
+  // (the map frame's gravity) through the sensor.
+  const Eigen::Isometry3d T_post = state.T_world_imu() * T_il;
+  std::vector<MotionHypothesis> h;
+  h.push_back({"update", T_post});
+  h.push_back({"prediction", predicted.T_world_imu() * T_il});
+  const Eigen::Vector3d up = -state.gravity_world.normalized();
+  const double a = co.turn_deg * M_PI / 180.0;
+  for (double k : {1.0, -1.0, 2.0, -2.0}) {
+    if (!(a > 0.0)) break;
+    Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
+    turn.linear() = SO3Exp(up * (k * a));
+    turn.translation() = T_post.translation() - turn.linear() * T_post.translation();
+    std::ostringstream os;
+    os << "turn " << (k > 0 ? "+" : "") << k * co.turn_deg << " deg";
+    h.push_back({os.str(), turn * T_post});
+  }
+  LidarOnlyOptions options = config.lidar_only;
+  options.good_fit = std::min(options.good_fit, baseline);
+  const CoarseAlignment c = AlignHypotheses(frame, h, options, config.iekf, config.knn);
+  r->guesses_tried = c.tried;
+  r->motion_guess = c.name;
+  std::ostringstream why;
+  why.precision(2);
+  why << std::fixed << "the map contradicts the prediction (fit " << fit.fit << " < " << co.fit_ratio
+      << " x recent " << baseline << ")";
+
+  // The prediction moved to the aligned pose, its velocity turned with it, and the covariance
+  // widened by each correction along its own direction.
+  NavState anchored = predicted;
+  const Eigen::Isometry3d T_anchor = c.T_world_lidar * T_il.inverse();
+  const Eigen::Matrix3d dR = T_anchor.linear() * predicted.R_world_imu.transpose();
+  anchored.R_world_imu = NormalizeRotation(T_anchor.linear());
+  anchored.p_world_imu = T_anchor.translation();
+  anchored.v_world = dR * predicted.v_world;
+  const Eigen::Vector3d d_rot = SO3Log(predicted.R_world_imu.transpose() * anchored.R_world_imu);
+  const Eigen::Vector3d d_pos = anchored.p_world_imu - predicted.p_world_imu;
+  const Eigen::Vector3d d_vel = anchored.v_world - predicted.v_world;
+  anchored.P.block<3, 3>(kRot, kRot) += d_rot * d_rot.transpose();
+  anchored.P.block<3, 3>(kPos, kPos) += d_pos * d_pos.transpose();
+  anchored.P.block<3, 3>(kVel, kVel) += d_vel * d_vel.transpose();
+  frame.T_world_lidar_predicted = c.T_world_lidar;
+  for (ResidualProvider* p : providers) p->BeginScan(frame);
+  NavState s = anchored;
+  const IekfReport rep2 = IekfUpdate(iekf, T_il, providers, &s);
+  const FitScore fit2 = ScoreFit(sample, s.T_world_imu() * T_il, config.lidar_only, config.knn);
+  if (rep2.skipped || !(fit2.fit >= fit.fit + co.min_gain)) {
+    // Nothing fits clearly better: the update's pose stands, and the status says it may be off.
+    why << "; no guess fits better (best " << c.name << ", " << fit2.fit << "): pose kept";
+    Append(&r->reason, why.str());
+    contradicted = true;
+    remember(fit.fit);
+    return rep;
+  }
+  state = s;
+  r->fit = fit2.fit;
+  r->overruled = true;
+  why << "; LiDAR overruled it by " << d_rot.norm() * 180.0 / M_PI << " deg, " << d_pos.norm()
+      << " m (guess " << c.name << ", fit " << fit2.fit << ")";
+  Append(&r->reason, why.str());
+  Log(LogLevel::kWarn, why.str());
+  remember(fit2.fit);
+  return rep2;
+}
+
 void LioPpf::Impl::SetUpdateStatus(const IekfReport& rep, bool lidar, ScanResult* r) const {
   if (rep.skipped) {
     r->status = Status::kDegenerate;
@@ -313,6 +430,8 @@ void LioPpf::Impl::SetUpdateStatus(const IekfReport& rep, bool lidar, ScanResult
   } else if (rep.degenerate) {
     r->status = Status::kDegenerate;
     Append(&r->reason, "degenerate: " + rep.degenerate_reason);
+  } else if (contradicted) {
+    r->status = Status::kDegenerate;  // the reason says how the map contradicts the pose
   } else {
     r->status = Status::kOk;
   }

@@ -53,6 +53,12 @@ std::string Usage() {
          ppf::tools::StudyOptionsHelp(kDefaultSequences) +
          "  --modes LIST          knn, ppf or knn,ppf (default: knn)\n"
          "  --save DIR            write <sequence>_<mode>.tum and .csv (per-scan stats) there\n"
+         "  --disturb ARGS        ppf_sim disturbance options for every sequence, e.g.\n"
+         "                        \"--jolt 8:5\" or \"--imu-gap 8:0.5\" (see ppf_sim --help)\n"
+         "  --disturb-at S        also print how each run came back from the disturbance at S s\n"
+         "                        (sim time): heading and position error --settle seconds after,\n"
+         "                        the estimate aligned on the poses before S only; max tilt after\n"
+         "  --settle S            seconds after --disturb-at (default 1)\n"
          "  -h, --help            this text\n";
 }
 
@@ -77,14 +83,22 @@ struct Row {
   std::string name, mode, motion;
   ppf::tools::AccuracyBound bound;
   ppf::tools::ModeRun run;
+  ppf::tools::Recovery recovery;  // --disturb-at
   std::string failure;  // non-empty: the run could not be made
+};
+
+struct DisturbOptions {
+  std::string sim_args;   // --disturb
+  double at_s = -1.0;     // --disturb-at; < 0: no recovery lines
+  double settle_s = 1.0;  // --settle
 };
 
 // One row per sequence and mode: the sequence generated (once) and run in that mode, or why not.
 // With `save_dir`, each run's trajectory (.tum) and per-scan stats (.csv) go there.
 std::vector<Row> RunStudy(const ppf::tools::StudyOptions& opts,
                           const std::vector<ppf::tools::SequenceSpec>& sequences,
-                          const std::vector<ppf::Mode>& modes, const std::string& save_dir) {
+                          const std::vector<ppf::Mode>& modes, const std::string& save_dir,
+                          const DisturbOptions& disturb) {
   const double duration = opts.EffectiveDuration();
   const double tilt_after = opts.EffectiveTiltAfter();
   std::vector<Row> rows;
@@ -116,6 +130,10 @@ std::vector<Row> RunStudy(const ppf::tools::StudyOptions& opts,
         try {
           row.run = ppf::tools::RunAndEvaluate(bag, config, mode, gt, tilt_after);
           if (!row.run.ape.ok) row.failure = "APE: " + row.run.ape.error;
+          if (disturb.at_s >= 0.0) {
+            row.recovery = ppf::tools::ComputeRecovery(gt, row.run.trajectory, disturb.at_s,
+                                                       disturb.settle_s);
+          }
         } catch (const std::exception& e) {
           row.failure = e.what();
         }
@@ -139,7 +157,8 @@ std::vector<Row> RunStudy(const ppf::tools::StudyOptions& opts,
 }
 
 // The table, then issue 11's gravity lines and the verdict. Returns the number of failed runs.
-int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after) {
+int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after,
+               const DisturbOptions& disturb) {
   std::cout << "\nAPE against the issues' bounds, " << duration
             << " s sequences (SE(3)-aligned; RPE between consecutive scans; posyaw: APE aligned by"
                " position + yaw only;\ntilt: degrees between estimated and true gravity from "
@@ -190,6 +209,24 @@ int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after)
                                                        &all_met);
   }
   std::cout << "\ngravity bounds (issue 11):\n" << gravity_lines.str();
+  if (disturb.at_s >= 0.0) {
+    std::cout << "\nrecovery from the disturbance at " << disturb.at_s << " s (" << disturb.sim_args
+              << "), " << disturb.settle_s << " s later and after (aligned on the poses before):\n";
+    for (const auto& r : rows) {
+      if (!r.failure.empty()) continue;
+      const ppf::tools::Recovery& rec = r.recovery;
+      std::cout << "  " << std::left << std::setw(16) << r.name << std::setw(5) << r.mode
+                << std::right;
+      if (!rec.ok) {
+        std::cout << rec.error << "\n";
+        continue;
+      }
+      std::cout << std::fixed << std::setprecision(3) << "heading " << rec.heading_at_settle_deg
+                << " deg (max " << rec.max_heading_deg << "), position " << rec.position_at_settle_m
+                << " m (max " << rec.max_position_m << "), tilt max " << rec.max_tilt_deg
+                << " deg, overruled " << r.run.summary.overruled << " scans\n";
+    }
+  }
   std::cout << "\n";
   if (failed > 0) std::cout << failed << " run(s) failed\n";
   std::cout << (all_met ? "all bounds met" : "some bounds missed") << "\n";
@@ -203,14 +240,30 @@ int main(int argc, char** argv) {
   opts.sequences = kDefaultSequences;
   opts.config_dir = PPF_DEFAULT_CONFIG_DIR;
   std::string modes_arg = "knn", save_dir;
+  DisturbOptions disturb;
   const auto own = [&](int n, char** args, int* i, std::string* error) {
     const std::string a = args[*i];
-    if (a != "--modes" && a != "--save") return 0;
+    if (a != "--modes" && a != "--save" && a != "--disturb" && a != "--disturb-at" &&
+        a != "--settle") {
+      return 0;
+    }
     if (*i + 1 >= n) {
       *error = "missing value after " + a;
       return -1;
     }
-    (a == "--modes" ? modes_arg : save_dir) = args[++*i];
+    const std::string v = args[++*i];
+    if (a == "--modes") modes_arg = v;
+    if (a == "--save") save_dir = v;
+    if (a == "--disturb") disturb.sim_args = v;
+    if (a == "--disturb-at" || a == "--settle") {
+      char* end = nullptr;
+      const double x = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(x >= 0.0)) {
+        *error = a + ": not a number >= 0: '" + v + "'";
+        return -1;
+      }
+      (a == "--settle" ? disturb.settle_s : disturb.at_s) = x;
+    }
     return 1;
   };
   bool help = false;
@@ -223,8 +276,10 @@ int main(int argc, char** argv) {
   const std::vector<ppf::Mode> modes = ParseModes(modes_arg);
   std::vector<ppf::tools::SequenceSpec> sequences;
   if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
+  for (auto& seq : sequences) seq.sim_extra = disturb.sim_args;
   if (!save_dir.empty()) std::filesystem::create_directories(save_dir);
-  const std::vector<Row> rows = RunStudy(opts, sequences, modes, save_dir);
-  const int failed = PrintTable(rows, opts.EffectiveDuration(), opts.EffectiveTiltAfter());
+  const std::vector<Row> rows = RunStudy(opts, sequences, modes, save_dir, disturb);
+  const int failed =
+      PrintTable(rows, opts.EffectiveDuration(), opts.EffectiveTiltAfter(), disturb);
   return failed > 0 ? 1 : 0;  // a study reports; test_accuracy asserts the bounds
 }

@@ -29,7 +29,7 @@ void WriteStatsCsvHeader(std::ostream& os) {
         "scattered_points,discarded_points,knn_residuals,skeleton_residuals,map_inserted,"
         "skeleton_patches,gyro_bias_x,gyro_bias_y,gyro_bias_z,acc_bias_x,acc_bias_y,acc_bias_z,"
         "gravity_map_x,gravity_map_y,gravity_map_z,skeleton_planes,fit,motion_guess,"
-        "guesses_tried,t_guesses_ms\n";
+        "guesses_tried,t_guesses_ms,correction_rot_deg,correction_pos_m,overruled\n";
 }
 
 void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
@@ -51,6 +51,9 @@ void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
   // LiDAR-only (lio_ppf.hpp): how well the scan fit the map and which guess won.
   os << ',' << r.skeleton_planes.size() << std::setprecision(3) << ',' << r.fit << ','
      << Quoted(r.motion_guess, '"') << ',' << r.guesses_tried << ',' << t.guesses;
+  // How far the LiDAR moved the prediction, and whether it overruled it (Config::consistency).
+  os << std::setprecision(4) << ',' << r.correction_rot_deg << ',' << r.correction_pos_m << ','
+     << (r.overruled ? 1 : 0);
   os << '\n';
 }
 
@@ -94,6 +97,7 @@ RunSummary Summarize(const std::vector<ScanResult>& results, double wall_s) {
     }
     core_ms += r.timings.total;
     s.imu_lost += r.imu_lost;
+    s.overruled += r.overruled;
     if (!r.pose_valid) continue;
     ++n;
     const auto& t = r.timings;
@@ -140,6 +144,9 @@ void PrintSummary(std::ostream& os, const RunSummary& s, const std::string& titl
      << s.max_map_size << "\n";
   if (s.imu_lost > 0) {
     os << "  IMU lost: " << s.imu_lost << " scans registered LiDAR-only (fallback)\n";
+  }
+  if (s.overruled > 0) {
+    os << "  LiDAR overruled the IMU prediction on " << s.overruled << " scans\n";
   }
 }
 

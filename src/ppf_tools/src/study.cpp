@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -187,6 +189,13 @@ std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::
                            std::ostream& log, const std::string& log_prefix) {
   std::ostringstream name;
   name << seq.scene << "_" << seq.lidar << "_" << static_cast<int>(duration) << "s";
+  if (!seq.sim_extra.empty()) {
+    std::string extra = seq.sim_extra;
+    for (char& ch : extra) {
+      if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.') ch = '_';
+    }
+    name << "_" << extra;
+  }
   const fs::path dir = fs::path(workdir) / name.str();
   if (CompleteSequence(dir)) return dir.string();
   const std::string sim_log = dir.string() + ".sim.log";
@@ -194,7 +203,8 @@ std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::
   const bool ok = GenerateSequenceOnce(dir.string(), [&](const std::string& out) {
     std::ostringstream cmd;
     cmd << "ppf_sim --scene " << seq.scene << " --lidar " << seq.lidar << " --duration " << duration
-        << " --seed 1 --storage mcap --out '" << out << "' > '" << sim_log << "' 2>&1";
+        << " --seed 1 --storage mcap " << seq.sim_extra << " --out '" << out << "' > '" << sim_log
+        << "' 2>&1";
     return std::system(cmd.str().c_str()) == 0;
   });
   if (!ok) {
@@ -334,6 +344,49 @@ std::string DescribeGravityBounds(const GravityBound& bound, const std::string& 
   }
   line(bound.TiltMet(run), buf);
   return out;
+}
+
+Recovery ComputeRecovery(const Trajectory& gt, const Trajectory& est, double t_s, double settle_s) {
+  Recovery rec;
+  if (gt.empty() || est.empty()) {
+    rec.error = "empty trajectory";
+    return rec;
+  }
+  const double t_abs = gt.front().stamp_s + t_s;
+  const auto pairs = AssociateByStamp(gt, est, 0.01, 0.0);
+  std::vector<Eigen::Vector3d> src, dst;
+  for (const auto& [i, j] : pairs) {
+    if (gt[i].stamp_s >= t_abs) break;
+    src.push_back(est[j].T.translation());
+    dst.push_back(gt[i].T.translation());
+  }
+  Eigen::Matrix3d R;
+  Eigen::Vector3d t;
+  if (!AlignPositionYaw(src, dst, &R, &t)) {
+    rec.error = "too few poses (or no horizontal motion) before the disturbance to align";
+    return rec;
+  }
+  auto heading = [](const Eigen::Matrix3d& R_world_body) {
+    return std::atan2(R_world_body(1, 0), R_world_body(0, 0));
+  };
+  for (const auto& [i, j] : pairs) {
+    if (gt[i].stamp_s < t_abs) continue;
+    rec.max_tilt_deg = std::max(rec.max_tilt_deg, TiltDeg(gt[i].T, est[j].T));
+    if (gt[i].stamp_s < t_abs + settle_s) continue;
+    double dh = heading(R * est[j].T.linear()) - heading(gt[i].T.linear());
+    dh = std::abs(std::remainder(dh, 2.0 * M_PI)) * 180.0 / M_PI;
+    const double dp = (R * est[j].T.translation() + t - gt[i].T.translation()).norm();
+    if (rec.poses_after == 0) {
+      rec.heading_at_settle_deg = dh;
+      rec.position_at_settle_m = dp;
+    }
+    ++rec.poses_after;
+    rec.max_heading_deg = std::max(rec.max_heading_deg, dh);
+    rec.max_position_m = std::max(rec.max_position_m, dp);
+  }
+  rec.ok = rec.poses_after > 0;
+  if (!rec.ok) rec.error = "no pose after the disturbance settled";
+  return rec;
 }
 
 }  // namespace ppf::tools

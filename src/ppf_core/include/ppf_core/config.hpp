@@ -36,7 +36,9 @@ struct TimeFieldOptions {
   TimeReference reference = TimeReference::kAuto;
   StampPosition stamp_position = StampPosition::kAuto;
   NoTimePolicy no_time_policy = NoTimePolicy::kAzimuth;
-  double scan_period_s = 0.1;    // spin period, used only by the azimuth estimate
+  // Spin period: the azimuth estimate's, and twice it bounds the point times a sweep may have
+  // (time_field.hpp: later ones are dropped and counted).
+  double scan_period_s = 0.1;
   bool azimuth_clockwise = true; // Velodyne/Ouster spin clockwise seen from above
 };
 
@@ -86,6 +88,29 @@ struct LidarOnlyOptions {
   // the poses noisier (docs/results.md, LiDAR-only); 2 for a hand-held sensor.
   int redeskew_iterations = 0;
   double redeskew_min_change = 0.002;  // rad and m
+};
+
+// --- the LiDAR's check of the IMU prediction (lio_ppf_process.cpp, OverruleIfInconsistent) ------
+// The update counts a scan's rows as far less informative than independent returns (iekf.hpp,
+// laser_point_std) and gates them narrowly, so that shared row errors cannot tilt the world: that
+// also leaves it no say over a few degrees or decimetres that the IMU got wrong without knowing
+// (a gyro saturated on a bump, a sample lost in a turn, a slipping mount, a bridged gap). So each
+// LIO scan's posterior is scored as the LiDAR-only guesses are (ScoreFit); when it fits the map
+// far worse than the recent scans did, guesses around it are aligned coarsely
+// (hypothesis_search.hpp), and a clearly better one re-anchors the prediction: pose moved, the
+// velocity turned with it, and the covariance widened by the size of the correction along its
+// own direction (a pure heading correction leaves the IMU's roll and pitch in charge). The
+// update then runs again from there. ScanResult::overruled and the reason say so.
+struct ConsistencyOptions {
+  bool check = true;
+  // A posterior fitting below this share of the median fit of the last scans is searched again.
+  double fit_ratio = 0.7;
+  int fit_points = 1000;  // sample of the downsampled scan that is scored
+  // The re-anchored posterior must fit at least this much better (share of the sample points).
+  double min_gain = 0.1;
+  // Guesses besides the posterior and the prediction: turned by +-turn and +-2 turn about the
+  // vertical through the sensor (the coarse alignment reaches a few degrees from each).
+  double turn_deg = 7.5;
 };
 
 // --- options of imu_init.hpp (static and moving start) ------------------------------------------
@@ -218,6 +243,10 @@ struct Config {
   ImuInitOptions init;         // static initialization (imu_init.hpp)
   ImuNoise noise;              // continuous-time noise densities (imu_propagation.hpp)
   double max_imu_gap_s = 0.5;  // longer gaps between IMU samples are bridged or re-anchored
+  // A gap between valid IMU samples longer than this is counted (InputStats::imu_gaps) and named
+  // in one WARN line (gaps beyond max_imu_gap_s in the bridge / IMU-loss line): even a gap the
+  // propagation integrates across unnoticed says the driver or the link drops samples.
+  double imu_max_gap_warn_s = 0.1;
   // IMU loss (lio_ppf.hpp): a scan whose end lies more than this beyond the last IMU sample,
   // while later scans show the stream has stalled (max_imu_gap_s), is registered LiDAR-only
   // (constant-velocity model seeded from the filter's velocity and turn rate, the guesses of
@@ -247,6 +276,7 @@ struct Config {
 
   // --- registration ----------------------------------------------------------------------------
   IekfOptions iekf;  // max 4 iterations, degeneracy thresholds (iekf.hpp)
+  ConsistencyOptions consistency;  // the LiDAR overrules a prediction the map contradicts
   KnnOptions knn;    // 5 neighbours, planes valid within 0.1 m (knn_residual.hpp)
   // Plane pre-fitting and skeleton tracking (Mode::kPpf), YAML section `ppf:`; why each default
   // is what it is: ppf_config.hpp (PpfConfigForBeams() for 16/32/64/128 beams).

@@ -77,6 +77,16 @@
 // (integrated across, uncertainty widened); after a longer one the first scan is registered
 // LiDAR-only and LIO re-anchors, as after an IMU loss. A reset would need a static start again,
 // which a moving robot never gives, so its odometry would not come back.
+// Single bad values never reset or stall: a point time outside the plausible sweep window (more
+// than 0.01 s before a scan-start header stamp, or more than 2 x time.scan_period after it;
+// time_field.hpp) is dropped and counted (ScanResult::points_bad_time) and does not move the
+// scan's time span; a scan that loses most of its points so is skipped (kRejected, nothing
+// changed). An IMU sample with the newest sample's stamp is dropped if its values are the same
+// (InputStats::imu_duplicates); with other values it is a conflict, decided by the next sample:
+// the copy consistent with the samples on either side is kept, or none (never the first by
+// arrival; ScanResult::imu_conflicts, one WARN). Every gap between valid IMU samples longer than
+// imu.max_gap_warn (0.1 s) is counted (ScanResult::imu_gaps, imu_gap_longest_s) and named in one
+// WARN. input_stats() has the totals.
 // Malformed clouds return Status::kRejected and change nothing.
 #pragma once
 
@@ -105,6 +115,20 @@ struct MapStats {
   size_t capacity_points = 0;  // the bound: max_voxels * max_points_per_voxel
 };
 
+// What the core refused or repaired in its input streams since it was constructed (Reset()
+// included): a node shows these counters beside its own. Each ScanResult carries the part since
+// the previous result (ScanResult::imu_gaps etc.).
+struct InputStats {
+  size_t scans_bad_time = 0;      // scans skipped: most point times outside the sweep window
+  size_t points_bad_time = 0;     // points dropped for such a time (ScanResult::points_bad_time)
+  size_t imu_duplicates = 0;      // same stamp and values as the sample before: dropped
+  size_t imu_conflicts = 0;       // same stamp, different values (each stamp counted once)
+  size_t imu_conflicts_unresolved = 0;  // ... of which neither copy fit its neighbours: none kept
+  size_t imu_gaps = 0;            // gaps between valid IMU samples longer than imu.max_gap_warn
+  size_t imu_clock_offset_dropped = 0;  // samples not used: the IMU clock was off the LiDAR's
+  double imu_gap_longest_s = 0.0;  // the longest of them
+};
+
 enum class Status {
   kOk,            // pose estimated from this scan
   kInitializing,  // IMU initialization not finished (reason says why); no pose yet
@@ -117,7 +141,8 @@ const char* StatusName(Status status);
 // Milliseconds. preprocess = decoding the cloud (layout, per-point time); downsample = stride and
 // range filter + voxel grid on the raw points; deskew = IMU propagation + de-skew of the
 // downsampled points (preprocess.hpp explains the order). guesses = LiDAR-only coarse alignment
-// of the motion guesses (hypothesis_search.hpp), 0 with an IMU.
+// of the motion guesses (hypothesis_search.hpp); with an IMU, the consistency check of the
+// posterior (Config::consistency) and, when the map contradicted the prediction, its search.
 struct StageTimings {
   double preprocess = 0, deskew = 0, downsample = 0, ppf = 0, residuals = 0, update = 0,
          map_insert = 0, total = 0, guesses = 0;
@@ -134,6 +159,18 @@ struct ScanResult {
   std::string reason;          // human readable: why not kOk, notes (e.g. time field fallback)
   bool pose_valid = false;     // false for kInitializing / kRejected / kReset
   double imu_gap_s = 0.0;      // > 0: an IMU gap this long before this scan was bridged
+  // IMU input since the previous result (InputStats has the totals): gaps between valid samples
+  // longer than imu.max_gap_warn and the longest of them, and stamps that came twice with
+  // different values (the copy kept is the one consistent with the samples either side, or
+  // neither: imu_conflicts_unresolved).
+  size_t imu_gaps = 0;
+  double imu_gap_longest_s = 0.0;
+  size_t imu_conflicts = 0;
+  size_t imu_conflicts_unresolved = 0;
+  // != 0: the IMU's clock runs this many seconds behind the LiDAR's (scan end minus the newest
+  // IMU sample, both streams live): the scan was registered LiDAR-only and the IMU is not used
+  // until the clocks agree again (the reason says so; imu_lost is set too once LIO had run).
+  double imu_clock_offset_s = 0.0;
   // Registered LiDAR-only because the IMU stream is lost mid-run (IMU loss fallback, Config::
   // imu_loss_timeout_s); the reason says so. The first LIO scan after it has imu_gap_s > 0.
   bool imu_lost = false;
@@ -171,6 +208,11 @@ struct ScanResult {
 
   size_t input_points = 0;        // width * height
   size_t dropped_nan = 0;
+  // Points dropped because their time lies outside the plausible sweep window (time_field.hpp:
+  // before the header stamp, or later than 2 x time.scan_period after it); they never move
+  // scan_begin_s or stamp_s. When they outnumber the points kept the scan is skipped: kRejected,
+  // the reason says so, nothing changed.
+  size_t points_bad_time = 0;
   size_t valid_points = 0;        // after NaN and range filtering
   size_t downsampled_points = 0;
   size_t skeleton_points = 0;     // labelled kSkeleton
@@ -194,10 +236,20 @@ struct ScanResult {
   std::vector<PointLabel> deskewed_point_labels;
 
   // LiDAR-only: the share of scan points on a map plane after the coarse alignment
-  // (hypothesis_search.hpp), the guess it came from and how many guesses were aligned.
+  // (hypothesis_search.hpp), the guess it came from and how many guesses were aligned. LIO with
+  // consistency.check: the same share at the posterior (ScoreFit), and the guesses of a search.
   double fit = 0.0;
   std::string motion_guess;
   int guesses_tried = 0;
+
+  // How far the LiDAR moved the prediction (IMU-propagated, or the LiDAR-only guess) in this
+  // scan: rotation in degrees, translation in metres, between the prior and the posterior.
+  double correction_rot_deg = 0.0;
+  double correction_pos_m = 0.0;
+  // The map contradicted the IMU prediction (the posterior fit far worse than the recent scans)
+  // and a pose found from guesses around it fit clearly better: the prediction was re-anchored
+  // there and the update ran again (Config::consistency). The reason and one WARN say how far.
+  bool overruled = false;
 
   int iterations = 0;
   bool converged = false;
@@ -229,6 +281,7 @@ class LioPpf {
 
   const Config& config() const;
   MapStats map_stats() const;
+  InputStats input_stats() const;
   // A copy of the kNN map's points in the world frame of the results (the current T_world_map
   // applied): what the scans are registered against now, bounded as MapStats says. In kPpf the
   // skeleton points are not in it (they are kept as plane patches, not points).

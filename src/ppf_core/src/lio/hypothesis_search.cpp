@@ -10,18 +10,24 @@
 #include "ppf_core/lio/voxel_map.hpp"
 
 namespace ppf {
-namespace {
 
-ScanFrame Sample(const ScanFrame& frame, int max_points) {
-  ScanFrame s = frame;
+ScanFrame SampleFrame(const ScanFrame& frame, int max_points) {
+  ScanFrame s;
+  s.stamp_s = frame.stamp_s;
+  s.T_world_lidar_predicted = frame.T_world_lidar_predicted;
+  s.T_imu_lidar = frame.T_imu_lidar;
+  s.map = frame.map;
+  s.residual_max_range = frame.residual_max_range;
   const size_t n = frame.points_lidar.size();
   const size_t stride =
       max_points > 0 ? std::max<size_t>(1, n / static_cast<size_t>(max_points)) : 1;
-  s.points_lidar.clear();
+  s.points_lidar.reserve(n / stride + 1);
   for (size_t i = 0; i < n; i += stride) s.points_lidar.push_back(frame.points_lidar[i]);
   s.labels.assign(s.points_lidar.size(), PointLabel::kScattered);
   return s;
 }
+
+namespace {
 
 NavState StateAt(const Eigen::Isometry3d& T_world_lidar, const Eigen::Isometry3d& T_imu_lidar) {
   NavState s;
@@ -82,7 +88,7 @@ CoarseAlignment AlignHypotheses(const ScanFrame& frame,
   best.name = hypotheses.front().name;
   if (frame.points_lidar.empty() || frame.map == nullptr) return best;
 
-  const ScanFrame sample = Sample(frame, options.coarse_points);
+  const ScanFrame sample = SampleFrame(frame, options.coarse_points);
   IekfOptions coarse = iekf;
   coarse.max_iterations = std::max(1, options.coarse_iterations);
   // The refined gate would drop the true matches of a guess that is still far off.

@@ -26,6 +26,7 @@ struct RunSummary {
   double mean_skeleton_points = 0.0, mean_scattered_points = 0.0;
   double mean_knn_residuals = 0.0, mean_skeleton_residuals = 0.0;
   size_t imu_lost = 0;  // scans registered LiDAR-only because the IMU stream was lost
+  size_t overruled = 0;  // scans whose IMU prediction the map contradicted and the LiDAR moved
 };
 RunSummary Summarize(const std::vector<ScanResult>& results, double wall_s);
 void PrintSummary(std::ostream& os, const RunSummary& s, const std::string& title);

@@ -16,6 +16,8 @@ namespace ppf::tools {
 
 struct SequenceSpec {
   std::string scene, lidar;
+  // More ppf_sim options (the disturbances: "--jolt 8:5"); part of the sequence's directory name.
+  std::string sim_extra;
   std::string Name() const { return scene + "/" + lidar; }  // "urban/hdl64"
 };
 
@@ -100,6 +102,24 @@ ModeRun RunAndEvaluate(const std::string& bag, const Config& base, Mode mode, co
 // SE(3) and position+yaw APE and the gravity metrics of a trajectory against gt, stored in run
 // (ape, ape_posyaw, rpe, gravity, tilt_after, path_length).
 void Evaluate(const Trajectory& gt, const Trajectory& est, double tilt_after, ModeRun* run);
+
+// How a run came back from a disturbance (ppf_sim --jolt, --imu-gap, --silence, --gyro-range) at
+// `t_s` seconds after the ground truth's first stamp. The estimate is aligned to the ground truth
+// by position + yaw on the poses before t_s only, so an error the disturbance left is not
+// averaged away by the alignment; then every pose from t_s + settle_s on is compared: heading
+// (angle between the body x axes projected on the horizontal plane, degrees) and position
+// (metres). The tilt needs no alignment.
+struct Recovery {
+  bool ok = false;
+  std::string error;
+  size_t poses_after = 0;            // poses from t_s + settle_s on
+  double heading_at_settle_deg = 0;  // the first of them
+  double position_at_settle_m = 0;
+  double max_heading_deg = 0;        // all of them
+  double max_position_m = 0;
+  double max_tilt_deg = 0;           // from t_s on
+};
+Recovery ComputeRecovery(const Trajectory& gt, const Trajectory& est, double t_s, double settle_s);
 
 // The accuracy bounds of issue 4 for one sequence: APE RMSE at most 0.5 % of the path length
 // (urban, indoor, ramps) or 1 % (park); hand-held motion additionally at most 5 cm.

@@ -59,6 +59,10 @@ struct FitScore {
   size_t covered = 0;
   double fit = 0.0;
 };
+// Every n-th point of the frame, at most max_points of them (all if max_points <= 0), all
+// labelled kScattered; map and extrinsic as the frame's.
+ScanFrame SampleFrame(const ScanFrame& frame, int max_points);
+
 FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
                   const LidarOnlyOptions& options, const KnnOptions& knn);
 

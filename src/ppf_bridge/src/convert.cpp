@@ -3,11 +3,21 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <string_view>
+#include <vector>
 
 #include "ppf_core/lio/time_field.hpp"
 #include "ppf_msgs_cdr/time.hpp"
 
 namespace ppf::bridge {
+
+std::string CheckStamp(const builtin_interfaces::msg::Time& stamp) {
+  // A nanosecond part of a second or more is no time any clock writes: converted as it stands it
+  // would move the message seconds ahead (up to 4.3 s), and every later message would look late.
+  if (stamp.nanosec() < kNanosecPerSecond) return "";
+  return "header.stamp.nanosec " + std::to_string(stamp.nanosec()) +
+         " is out of range (must be < 1000000000; stamp sec " + std::to_string(stamp.sec()) + ")";
+}
 
 std::optional<CloudView> ToCloudView(const sensor_msgs::msg::PointCloud2& msg, std::string* error) {
   CloudView view;
@@ -23,14 +33,15 @@ std::optional<CloudView> ToCloudView(const sensor_msgs::msg::PointCloud2& msg, s
     if (error) *error = why;
     return std::nullopt;
   };
+  if (std::string stamp = CheckStamp(msg.header().stamp()); !stamp.empty()) return fail(stamp);
+  // Said apart from "lacks an x, y or z field": a writer that filled in no field table at all is
+  // a different bug than one that named its fields differently.
+  if (msg.fields().empty() && msg.width() * static_cast<uint64_t>(msg.height()) > 0) {
+    return fail("cloud declares no fields (x, y and z are needed)");
+  }
   for (const auto& f : msg.fields()) {
     if (f.datatype() < 1 || f.datatype() > 8) {
       return fail("field '" + f.name() + "' has unknown datatype " + std::to_string(f.datatype()));
-    }
-    // Readers take the first field of a name; a second one means the writer's layout is not what
-    // either of them describes.
-    for (const FieldDesc& seen : view.fields) {
-      if (seen.name == f.name()) return fail("duplicate field '" + f.name() + "'");
     }
     const FieldDesc desc{f.name(), f.offset(), static_cast<FieldType>(f.datatype()), f.count()};
     // Every field must lie inside the point, not only the ones the core reads: a field beyond
@@ -43,6 +54,17 @@ std::optional<CloudView> ToCloudView(const sensor_msgs::msg::PointCloud2& msg, s
                   std::to_string(msg.point_step()));
     }
     view.fields.push_back(desc);
+  }
+  // Readers take the first field of a name; a second one means the writer's layout is not what
+  // either of them describes. Sorted, not compared pairwise: a table of thousands of fields must
+  // not cost the listener quadratic time.
+  {
+    std::vector<std::string_view> names;
+    names.reserve(view.fields.size());
+    for (const FieldDesc& d : view.fields) names.emplace_back(d.name);
+    std::sort(names.begin(), names.end());
+    const auto dup = std::adjacent_find(names.begin(), names.end());
+    if (dup != names.end()) return fail("duplicate field '" + std::string(*dup) + "'");
   }
   view.data = msg.data().data();
   view.size = msg.data().size();
@@ -63,6 +85,10 @@ std::optional<CloudView> ToCloudView(const sensor_msgs::msg::PointCloud2& msg, s
 }
 
 std::optional<ImuSample> ToImuSample(const sensor_msgs::msg::Imu& msg, std::string* error) {
+  if (std::string stamp = CheckStamp(msg.header().stamp()); !stamp.empty()) {
+    if (error) *error = "IMU sample's " + stamp;
+    return std::nullopt;
+  }
   ImuSample s;
   s.stamp_s = msgs::ToSeconds(msg.header().stamp());
   const auto& w = msg.angular_velocity();

@@ -77,6 +77,83 @@ TEST(Convert, InconsistentCloudLayoutsAreRejectedWithTheReason) {
   EXPECT_TRUE(ToCloudView(c).has_value());
 }
 
+// A header stamp whose nanosecond part is a second or more is no time at all (read as it
+// stands it moved the scan seconds ahead): refused, cloud and IMU alike, with the value.
+TEST(Convert, StampWithNanosecOutOfRangeIsRefused) {
+  auto c = MakeCloud(10);
+  builtin_interfaces::msg::Time t = c.header().stamp();
+  t.nanosec(999999999u);
+  c.header().stamp(t);
+  std::string error;
+  EXPECT_TRUE(ToCloudView(c, &error).has_value()) << error;
+  t.nanosec(kNanosecPerSecond);
+  c.header().stamp(t);
+  EXPECT_FALSE(ToCloudView(c, &error).has_value());
+  EXPECT_NE(error.find("header.stamp.nanosec 1000000000 is out of range"), std::string::npos)
+      << error;
+  t.nanosec(4000000000u);
+  c.header().stamp(t);
+  EXPECT_FALSE(ToCloudView(c, &error).has_value());
+  EXPECT_NE(error.find("nanosec 4000000000"), std::string::npos) << error;
+
+  ImuSample s;
+  s.stamp_s = 100.25;
+  s.angular_velocity = {0.1, -0.2, 0.3};
+  s.linear_acceleration = {0.0, 0.5, 9.81};
+  auto msg = ToImuMsg(s, "imu");
+  t = msg.header().stamp();
+  t.nanosec(4000000000u);
+  msg.header().stamp(t);
+  EXPECT_FALSE(ToImuSample(msg, &error).has_value());
+  EXPECT_NE(error.find("IMU sample's header.stamp.nanosec 4000000000 is out of range"),
+            std::string::npos)
+      << error;
+}
+
+// row_step 0 (published by some drivers for unorganized clouds) is width * point_step, and the
+// data must then match exactly; a non-zero row_step below a row is refused.
+TEST(Convert, RowStepZeroIsReadAsWidthTimesPointStep) {
+  auto c = MakeCloud(10);
+  c.row_step(0);
+  std::string error;
+  auto view = ToCloudView(c, &error);
+  ASSERT_TRUE(view.has_value()) << error;
+  EXPECT_EQ(view->size, 200u);
+  c.data().resize(220);
+  EXPECT_FALSE(ToCloudView(c, &error).has_value());
+  EXPECT_NE(error.find("header declares 200 (height 1 x row_step 200)"), std::string::npos)
+      << error;
+  c = MakeCloud(10);
+  c.row_step(199);
+  EXPECT_FALSE(ToCloudView(c, &error).has_value());
+  EXPECT_NE(error.find("row_step 199 < width * point_step 200"), std::string::npos) << error;
+}
+
+// A cloud with no field table says so (not "lacks x, y or z"); thousands of extra fields are a
+// valid layout, checked for duplicates without quadratic cost.
+TEST(Convert, NoFieldsRefusedManyFieldsAccepted) {
+  auto c = MakeCloud(10);
+  c.fields().clear();
+  std::string error;
+  EXPECT_FALSE(ToCloudView(c, &error).has_value());
+  EXPECT_NE(error.find("cloud declares no fields"), std::string::npos) << error;
+  c = MakeCloud(10);
+  for (int i = 0; i < 5000; ++i) {
+    sensor_msgs::msg::PointField f;
+    f.name("extra_" + std::to_string(i));
+    f.offset(static_cast<uint32_t>(i % 20));
+    f.datatype(2);
+    f.count(1);
+    c.fields().push_back(f);
+  }
+  auto view = ToCloudView(c, &error);
+  ASSERT_TRUE(view.has_value()) << error;
+  EXPECT_EQ(view->fields.size(), 5005u);
+  c.fields()[4000].name("extra_17");
+  EXPECT_FALSE(ToCloudView(c, &error).has_value());
+  EXPECT_NE(error.find("duplicate field 'extra_17'"), std::string::npos) << error;
+}
+
 TEST(Convert, ImplausibleImuSamplesAreRejected) {
   ImuSample s;
   s.stamp_s = 100.25;

@@ -261,7 +261,7 @@ void NodeInputs::OnClouds(fdds::DataReader* reader) {
                                       " scan(s) never reached the node (transport loss or "
                                       "reader history overwritten)");
     }
-    stats_->Add(&NodeSummary::scans_received);
+    stats_->AddScanReceived(received);
     if (sample.refused) {  // by the type's size gate, undecoded: the buffer kept its capacity
       ReportTooLarge(sample.error);
       pool_->Return(std::move(buffer));
@@ -281,6 +281,7 @@ void NodeInputs::OnClouds(fdds::DataReader* reader) {
       pool_->Return(std::move(buffer));
       continue;
     }
+    NoteUnusualCloud(*buffer);
     const double stamp = msgs::ToSeconds(buffer->header().stamp());
     if (!CheckCloudUsable(*buffer, stamp)) {
       pool_->Return(std::move(buffer));
@@ -331,6 +332,48 @@ bool NodeInputs::CheckCloudUsable(const sensor_msgs::msg::PointCloud2& m, double
     return false;
   }
   return true;
+}
+
+namespace {
+
+// Real drivers declare a few to a few tens of fields, and frame names are short; far beyond
+// either, a user debugging a driver wants to hear of it.
+constexpr size_t kManyFields = 64;
+constexpr size_t kLongFrameId = 256;
+
+}  // namespace
+
+// Clouds taken as they are, but unusual enough to name. Each kind is logged the first time only:
+// a driver that always does it would otherwise repeat the line all run; every one is counted.
+void NodeInputs::NoteUnusualCloud(const sensor_msgs::msg::PointCloud2& m) {
+  const std::string cloud = "PointCloud2 on " + RosTopicToDds(config_.points_topic);
+  const std::string later = " (said once; every such cloud is counted in scans_unusual)";
+  bool unusual = false;
+  if (m.row_step() == 0 && static_cast<uint64_t>(m.width()) * m.height() > 0) {
+    unusual = true;
+    if (!said_row_step_zero_.exchange(true)) {
+      Log(Level::kInfo, cloud + " has row_step 0: read as width * point_step (" +
+                            std::to_string(static_cast<uint64_t>(m.width()) * m.point_step()) +
+                            " bytes per row), the data matching that" + later);
+    }
+  }
+  if (m.fields().size() > kManyFields) {
+    unusual = true;
+    if (!said_many_fields_.exchange(true)) {
+      Log(Level::kWarn, cloud + " declares " + std::to_string(m.fields().size()) +
+                            " fields: only x, y, z and the time field are read" + later);
+    }
+  }
+  if (m.header().frame_id().size() > kLongFrameId) {
+    unusual = true;
+    if (!said_long_frame_id_.exchange(true)) {
+      Log(Level::kWarn, cloud + " has a frame_id of " +
+                            std::to_string(m.header().frame_id().size()) + " bytes (\"" +
+                            m.header().frame_id().substr(0, 32) +
+                            "...\"): not used, the node's frames come from frames.*" + later);
+    }
+  }
+  if (unusual) stats_->Add(&NodeSummary::scans_unusual);
 }
 
 void NodeInputs::OnImu(fdds::DataReader* reader) {

@@ -80,6 +80,7 @@ class NodeInputs {
   void OnImu(eprosima::fastdds::dds::DataReader* reader);
   void ReportTooLarge(const std::string& points);  // counted and logged, rate-limited
   bool CheckCloudUsable(const sensor_msgs::msg::PointCloud2& m, double stamp);
+  void NoteUnusualCloud(const sensor_msgs::msg::PointCloud2& m);  // counted, each kind said once
 
   const NodeConfig config_;
   NodeStats* const stats_;
@@ -99,6 +100,9 @@ class NodeInputs {
   RateLimitedLog malformed_log_, imu_malformed_log_, drop_log_, empty_log_, large_log_, stamp_log_,
       jump_log_;
   RateLimitedLog lost_log_{1.0};
+  // Unusual but usable clouds (NoteUnusualCloud): whether each kind was named yet.
+  std::atomic<bool> said_row_step_zero_{false}, said_many_fields_{false},
+      said_long_frame_id_{false};
   // Matched-but-silent watch per stream: listeners mark samples and matches, the diagnostics
   // thread polls (CheckStalls).
   StallWatch points_stall_, imu_stall_;

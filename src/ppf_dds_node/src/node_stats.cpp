@@ -20,8 +20,62 @@ uint64_t NodeStats::Add(uint64_t NodeSummary::*counter, uint64_t n) {
   return summary_.*counter;
 }
 
+void NodeStats::AddScanReceived(std::chrono::steady_clock::time_point t) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++summary_.scans_received;
+  // The span of arrivals without a result starts again after a silence: scans left waiting
+  // while both streams paused are not a stall once the data resumes.
+  if (unanswered_++ == 0 ||
+      std::chrono::duration<double>(t - last_received_).count() > kCoreStallS) {
+    first_unanswered_ = t;
+  }
+  last_received_ = t;
+}
+
+namespace {
+
+uint64_t Refused(const NodeSummary& s) {
+  return s.scans_malformed + s.scans_too_large + s.scans_empty + s.scans_bad_stamp;
+}
+uint64_t Dropped(const NodeSummary& s) { return s.scans_late + s.scans_dropped; }
+
+}  // namespace
+
+CoreStallPoll NodeStats::CheckCoreStall(std::chrono::steady_clock::time_point now) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  CoreStallPoll p;
+  // Before the first result the status says "waiting" anyway, and the core may be holding scans
+  // on purpose (imu.auto_wait). One or two scans waiting since the stream stopped are no stall:
+  // the arrivals themselves must span the interval.
+  const bool stalled =
+      have_result_ && unanswered_ >= 2 &&
+      std::chrono::duration<double>(last_received_ - first_unanswered_).count() > kCoreStallS;
+  using Seconds = std::chrono::duration<double>;
+  if (stalled && !core_stalled_) {
+    p.event = CoreStallPoll::Event::kStarted;
+    ++summary_.core_stalls;
+    stall_since_ = last_result_;
+  } else if (!stalled && core_stalled_) {
+    // Ended by a result: how long none came.
+    p.event = CoreStallPoll::Event::kEnded;
+    p.seconds = Seconds(last_result_ - stall_since_).count();
+  }
+  core_stalled_ = stalled;
+  p.stalled = stalled;
+  if (stalled) p.seconds = core_stall_s_ = Seconds(now - last_result_).count();
+  p.episode = summary_.core_stalls;
+  p.received = summary_.scans_received - at_last_result_.scans_received;
+  p.refused = Refused(summary_) - Refused(at_last_result_);
+  p.dropped = Dropped(summary_) - Dropped(at_last_result_);
+  return p;
+}
+
 void NodeStats::CountResult(const ScanResult& r) {
   std::lock_guard<std::mutex> lock(mutex_);
+  have_result_ = true;
+  last_result_ = std::chrono::steady_clock::now();
+  unanswered_ = 0;
+  at_last_result_ = summary_;
   ++summary_.scans_processed;
   summary_.last_status = StatusName(r.status);
   if (r.status == Status::kRejected) ++summary_.scans_rejected;
@@ -100,28 +154,35 @@ NodeSummary NodeStats::Snapshot() const {
 std::string NodeStats::PeriodicLine(size_t* latency_mark, const QueueFill& queues,
                                     const std::string& stalled) const {
   NodeSummary s;
-  double lat50, lat99, ovh99;
+  double lat50, lat99, ovh99, core_stall_s;
   size_t n;
+  bool core_stalled;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     s = summary_;
+    core_stalled = core_stalled_;
+    core_stall_s = core_stall_s_;
     n = latency_ms_.count();
     lat50 = latency_ms_.PercentileSince(*latency_mark, 50);
     lat99 = latency_ms_.PercentileSince(*latency_mark, 99);
     ovh99 = overhead_ms_.PercentileSince(*latency_mark, 99);
   }
   std::ostringstream o;
+  std::ostringstream stall;
+  stall << std::fixed << std::setprecision(1) << "stalled (no scan processed for " << core_stall_s
+        << " s while scans arrive)";
   o << std::fixed << std::setprecision(2) << "status="
     << (!stalled.empty() ? "stalled (no data on " + stalled + ")"
+        : core_stalled   ? stall.str()
                          : (s.last_status.empty() ? "waiting" : s.last_status))
     << (s.imu_fallback_active ? " (IMU lost: LiDAR-only)" : "")
-    << (s.lidar_only_active ? " (no IMU: LiDAR-only)" : "")
-    << " scans rx=" << s.scans_received << " proc=" << s.scans_processed
-    << " odom=" << s.odometry_published << " dropped=" << s.scans_dropped
-    << " malformed=" << s.scans_malformed + s.imu_malformed << " imu rx=" << s.imu_received
-    << " queues scan=" << queues.scans << "/" << queues.scan_capacity << " imu=" << queues.imus
-    << " | last " << (n - *latency_mark) << " scans: latency p50=" << lat50 << " p99=" << lat99
-    << " ms, overhead p99=" << ovh99 << " ms";
+    << (s.lidar_only_active ? " (no IMU: LiDAR-only)" : "") << " scans rx=" << s.scans_received
+    << " proc=" << s.scans_processed << " odom=" << s.odometry_published
+    << " dropped=" << s.scans_dropped << " malformed=" << s.scans_malformed + s.imu_malformed
+    << " imu rx=" << s.imu_received << " queues scan=" << queues.scans << "/"
+    << queues.scan_capacity << " imu=" << queues.imus << " | last " << (n - *latency_mark)
+    << " scans: latency p50=" << lat50 << " p99=" << lat99 << " ms, overhead p99=" << ovh99
+    << " ms";
   *latency_mark = n;
   return o.str();
 }
@@ -144,6 +205,7 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " imu_fallbacks=" << s.imu_fallbacks << " imu_fallback_scans=" << s.imu_fallback_scans
     << " lidar_only_scans=" << s.lidar_only_scans << " lio_started_late=" << s.lio_started_late
     << " points_stalls=" << s.points_stalls << " imu_stalls=" << s.imu_stalls
+    << " core_stalls=" << s.core_stalls << " scans_unusual=" << s.scans_unusual
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

@@ -34,10 +34,32 @@ struct QueueFill {
   size_t scans = 0, scan_capacity = 0, imus = 0;
 };
 
+// Scans kept arriving for longer than this without one processed: the node is stalled whatever
+// the core said last (the core stuck on one scan, or every scan refused or dropped).
+inline constexpr double kCoreStallS = 1.0;
+
+// What NodeStats::CheckCoreStall saw: an episode starting or ending, with what it is made of.
+struct CoreStallPoll {
+  enum class Event { kNone, kStarted, kEnded };
+  Event event = Event::kNone;
+  bool stalled = false;
+  double seconds = 0.0;  // since the last processed scan
+  uint64_t episode = 0;  // core_stalls
+  // Scans received since the last processed one, and of those: refused in the listener
+  // (malformed, too large, empty, bad stamp), dropped (late, or evicted from the full queue);
+  // the rest wait in the scan queue or the core.
+  uint64_t received = 0, refused = 0, dropped = 0;
+};
+
 class NodeStats {
  public:
   // Adds `n` to one counter; returns its new value (for "total N" in log lines).
   uint64_t Add(uint64_t NodeSummary::*counter, uint64_t n = 1);
+  // One cloud sample taken by the listener (counted in scans_received, valid or not).
+  void AddScanReceived(std::chrono::steady_clock::time_point t);
+  // Diagnostics thread: is the node stalled (scans arriving for more than kCoreStallS, none
+  // processed)? Counts each episode once (core_stalls); the caller logs the events.
+  CoreStallPoll CheckCoreStall(std::chrono::steady_clock::time_point now);
   // One result returned by the core: status counts, non-finite points, last status.
   void CountResult(const ScanResult& r);
   // A result that belongs to no scan (ScanResult::input_id 0): a reset the core did itself.
@@ -58,6 +80,7 @@ class NodeStats {
   // The periodic diagnostics line over the scans published since `*latency_mark`; advances it.
   // `stalled` names the streams matched but silent (NodeInputs::CheckStalls), "" if none: the
   // status then says stalled, whatever the core said last.
+  // The status also says stalled while the last CheckCoreStall found the node stalled.
   std::string PeriodicLine(size_t* latency_mark, const QueueFill& queues,
                            const std::string& stalled = "") const;
   static std::string FormatSummary(const NodeSummary& s);
@@ -65,6 +88,15 @@ class NodeStats {
  private:
   mutable std::mutex mutex_;
   NodeSummary summary_;
+  // Core stall watch (under mutex_): the scans received since the last result, the first and
+  // latest of them, the counters as they were at that result.
+  bool have_result_ = false;
+  std::chrono::steady_clock::time_point last_result_, first_unanswered_, last_received_,
+      stall_since_;
+  uint64_t unanswered_ = 0;
+  NodeSummary at_last_result_;
+  bool core_stalled_ = false;
+  double core_stall_s_ = 0.0;
   LatencyStats latency_ms_, core_time_ms_, overhead_ms_, imu_wait_ms_, decode_ms_, queue_ms_,
       behind_core_ms_, publish_ms_;
   std::atomic<int64_t> core_busy_ns_{0};

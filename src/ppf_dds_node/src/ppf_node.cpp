@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
 #include <mutex>
 #include <thread>
 
@@ -89,6 +90,28 @@ bool PpfNode::init(std::string* error) {
   return true;
 }
 
+namespace {
+
+// Logged outside NodeStats' lock.
+void ReportCoreStall(const CoreStallPoll& p) {
+  char secs[32];
+  std::snprintf(secs, sizeof(secs), "%.1f", p.seconds);
+  if (p.event == CoreStallPoll::Event::kStarted) {
+    const uint64_t waiting = p.received - std::min(p.received, p.refused + p.dropped);
+    Log(Level::kWarn, std::string("stalled: no scan processed for ") + secs + " s while " +
+                          std::to_string(p.received) + " arrived (" + std::to_string(p.refused) +
+                          " refused at input, " + std::to_string(p.dropped) +
+                          " dropped as late or from the full queue, " + std::to_string(waiting) +
+                          " waiting for the core); status=stalled until one is (core stall " +
+                          std::to_string(p.episode) + ")");
+  } else if (p.event == CoreStallPoll::Event::kEnded) {
+    Log(Level::kInfo, std::string("scans processed again after ") + secs +
+                          " s without (core stall " + std::to_string(p.episode) + " ended)");
+  }
+}
+
+}  // namespace
+
 void PpfNode::run() {
   Impl& m = *impl_;
   std::thread executor([&m] { m.executor->Run(); });
@@ -96,9 +119,11 @@ void PpfNode::run() {
       std::chrono::duration<double>(m.config.diagnostics_period_s));
   // The stall watch is polled more often than the status line, so a stall is reported about
   // diagnostics.stall_warn_s after the last sample, not up to a status period later.
-  const double tick_s = m.config.stall_warn_s > 0.0
-                            ? std::clamp(m.config.stall_warn_s / 4.0, 0.05, 1.0)
-                            : m.config.diagnostics_period_s;
+  // The core stall watch (kCoreStallS) likewise, at a quarter of its interval.
+  const double tick_s =
+      std::min(m.config.stall_warn_s > 0.0 ? std::clamp(m.config.stall_warn_s / 4.0, 0.05, 1.0)
+                                           : m.config.diagnostics_period_s,
+               kCoreStallS / 4.0);
   const auto stall_tick =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(tick_s));
   size_t latency_mark = 0;
@@ -112,6 +137,7 @@ void PpfNode::run() {
       if (m.stop_requested) break;
       lock.unlock();
       stalled = m.inputs.CheckStalls();
+      ReportCoreStall(m.stats.CheckCoreStall(Clock::now()));
       if (Clock::now() >= next_log) {
         m.FlushLogs();
         Log(Level::kInfo, m.stats.PeriodicLine(&latency_mark, m.inputs.Fill(), stalled));

@@ -73,6 +73,67 @@ TEST(NodeStats, LidarOnlyScansAndALateImuAreCountedAndShownInTheStatusLine) {
             std::string::npos);
 }
 
+// Scans arriving for more than a second without one processed (a stuck core, or every scan
+// refused): the status line says stalled with the seconds instead of the core's last "ok", the
+// episode is counted once with what the scans became, and it ends with the next result. Before
+// the first result, and for scans left waiting after the stream stopped, it is no stall.
+TEST(NodeStats, ScansArrivingWithoutResultsForASecondAreAStall) {
+  using std::chrono::milliseconds;
+  NodeStats stats;
+  ScanResult ok;
+  ok.status = Status::kOk;
+  ok.pose_valid = true;
+  size_t mark = 0;
+  auto t = std::chrono::steady_clock::now();
+  // No result yet (the core may hold scans on purpose): not a stall.
+  for (int i = 0; i < 20; ++i) stats.AddScanReceived(t + milliseconds(100 * i));
+  EXPECT_FALSE(stats.CheckCoreStall(t + milliseconds(2000)).stalled);
+  stats.CountResult(ok);
+  t = std::chrono::steady_clock::now();
+  // Two scans left waiting 0.1 s apart (the stream stopped), long after: not a stall. Nor
+  // when the data resumes after that silence, until scans have arrived for a second again.
+  stats.AddScanReceived(t - milliseconds(3000));
+  stats.AddScanReceived(t - milliseconds(2900));
+  EXPECT_FALSE(stats.CheckCoreStall(t - milliseconds(100)).stalled);
+  stats.AddScanReceived(t);
+  stats.AddScanReceived(t + milliseconds(100));
+  EXPECT_FALSE(stats.CheckCoreStall(t + milliseconds(150)).stalled);
+  for (int i = 2; i <= 10; ++i) stats.AddScanReceived(t + milliseconds(100 * i));
+  EXPECT_FALSE(stats.CheckCoreStall(t + milliseconds(1000)).stalled) << "1.0 s is not more";
+  EXPECT_NE(stats.PeriodicLine(&mark, QueueFill(), "").find("status=ok "), std::string::npos);
+  stats.Add(&NodeSummary::scans_malformed, 3);
+  stats.Add(&NodeSummary::scans_late);
+  stats.AddScanReceived(t + milliseconds(1200));
+  CoreStallPoll p = stats.CheckCoreStall(t + milliseconds(1300));
+  EXPECT_TRUE(p.stalled);
+  EXPECT_EQ(p.event, CoreStallPoll::Event::kStarted);
+  EXPECT_EQ(p.episode, 1u);
+  EXPECT_EQ(p.received, 14u);
+  EXPECT_EQ(p.refused, 3u);
+  EXPECT_EQ(p.dropped, 1u);
+  EXPECT_GE(p.seconds, 1.29);
+  const std::string line = stats.PeriodicLine(&mark, QueueFill(), "");
+  EXPECT_EQ(line.find("status=ok"), std::string::npos) << line;
+  EXPECT_NE(line.find("status=stalled (no scan processed for 1."), std::string::npos) << line;
+  // Still stalled: not counted again. A stream stall names the silent stream instead.
+  p = stats.CheckCoreStall(t + milliseconds(2500));
+  EXPECT_EQ(p.event, CoreStallPoll::Event::kNone);
+  EXPECT_TRUE(p.stalled);
+  EXPECT_NE(
+      stats.PeriodicLine(&mark, QueueFill(), "").find("status=stalled (no scan processed for 2."),
+      std::string::npos);
+  EXPECT_NE(
+      stats.PeriodicLine(&mark, QueueFill(), "points").find("status=stalled (no data on points)"),
+      std::string::npos);
+  stats.CountResult(ok);
+  p = stats.CheckCoreStall(std::chrono::steady_clock::now());
+  EXPECT_EQ(p.event, CoreStallPoll::Event::kEnded);
+  EXPECT_FALSE(p.stalled);
+  EXPECT_NE(stats.PeriodicLine(&mark, QueueFill(), "").find("status=ok "), std::string::npos);
+  EXPECT_EQ(stats.Snapshot().core_stalls, 1u);
+  EXPECT_NE(NodeStats::FormatSummary(stats.Snapshot()).find(" core_stalls=1 "), std::string::npos);
+}
+
 TEST(NodeConfig, EmptyYamlGivesDocumentedDefaults) {
   NodeConfig c;
   const auto r = LoadNodeConfigString("", &c);

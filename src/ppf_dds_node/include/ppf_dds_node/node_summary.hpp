@@ -57,6 +57,12 @@ struct NodeSummary {
   // (diagnostics.stall_warn_s): the data stopped while matching said all was well.
   uint64_t points_stalls = 0;
   uint64_t imu_stalls = 0;
+  // Episodes in which scans kept arriving for more than a second while none was processed (the
+  // core stuck, or every scan refused or dropped): status=stalled and one WARN each.
+  uint64_t core_stalls = 0;
+  // Clouds taken as they are but unusual enough to name once (row_step 0, thousands of fields,
+  // a frame_id of kilobytes): each kind logged the first time, all counted.
+  uint64_t scans_unusual = 0;
   double latency_p50_ms = 0, latency_p99_ms = 0, latency_max_ms = 0;
   double core_p50_ms = 0, core_p99_ms = 0;
   // overhead = latency - core - imu_wait - behind_core: the node's own cost (decode, hand-over,

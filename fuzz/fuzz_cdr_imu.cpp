@@ -1,5 +1,6 @@
 // Fuzz target: a sensor_msgs/Imu CDR payload, as ppf_node receives it from any DDS peer: CDR
-// decode, round trip, and the conversion that screens out non-finite samples.
+// decode, round trip, and the conversion that screens out non-finite samples and out-of-range
+// header stamps.
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -24,6 +25,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
 
   const auto sample = ppf::bridge::ToImuSample(msg, &error);
+  if (sample && msg.header().stamp().nanosec() >= ppf::bridge::kNanosecPerSecond) {
+    std::fprintf(stderr, "ToImuSample accepted header.stamp.nanosec %u\n",
+                 msg.header().stamp().nanosec());
+    std::abort();
+  }
   if (sample && (!sample->angular_velocity.allFinite() ||
                  !sample->linear_acceleration.allFinite())) {
     std::fprintf(stderr, "ToImuSample accepted a non-finite sample\n");

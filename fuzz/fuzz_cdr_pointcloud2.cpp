@@ -1,7 +1,8 @@
 // Fuzz target: a sensor_msgs/PointCloud2 CDR payload, as ppf_node receives it from any DDS peer
 // and ppf_offline reads it from a bag, through every step before the filter: CDR decode, the
-// re-encode the recorder and registered_points output use, the view, the layout check and the
-// per-point time decoder (with and without a forced time convention).
+// re-encode the recorder and registered_points output use, the view (which must refuse an
+// out-of-range header stamp), the layout check and the per-point time decoder (with and without
+// a forced time convention).
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -44,6 +45,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
 
   const auto view = ppf::bridge::ToCloudView(msg, &error);
   if (!view) return 0;
+  // An out-of-range stamp would reach the filter as a time seconds off.
+  if (msg.header().stamp().nanosec() >= ppf::bridge::kNanosecPerSecond) {
+    std::fprintf(stderr, "ToCloudView accepted header.stamp.nanosec %u\n",
+                 msg.header().stamp().nanosec());
+    std::abort();
+  }
   ppf::DecodedScan scan;
   ppf::TimeFieldDecoder detecting;
   detecting.Decode(*view, &scan, &error);

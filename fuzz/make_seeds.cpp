@@ -160,6 +160,35 @@ int main(int argc, char** argv) {
   WriteFile(pc / "organized_padded_rows", EncodeCdr(Cloud(2, 2, "t", 6, 4)));
   WriteFile(pc / "no_time_field", EncodeCdr(Cloud(4, 1, "", 0)));
   WriteFile(pc / "empty", EncodeCdr(Cloud(0, 1, "t", 6)));
+  // Hostile stamps and point times: a header nanosec of 4e9 (out of range), one point 1e6 s
+  // after the stamp (relative float32), every point 100 s before it (absolute float64).
+  {
+    auto c = Cloud(4, 1, "t", 6);
+    builtin_interfaces::msg::Time t = c.header().stamp();
+    t.nanosec(4000000000u);
+    c.header().stamp(t);
+    WriteFile(pc / "header_nanosec_4e9", EncodeCdr(c));
+    c = Cloud(4, 1, "time", 7);
+    const float far = 1e6f;
+    std::memcpy(c.data().data() + 2 * c.point_step() + 16, &far, 4);
+    WriteFile(pc / "point_time_plus_1e6", EncodeCdr(c));
+    c = Cloud(3, 1, "timestamp", 8);
+    for (uint32_t i = 0; i < c.width(); ++i) {
+      const double s = 1700000000.123456789 - 100.0 + 0.001 * i;
+      std::memcpy(c.data().data() + i * c.point_step() + 16, &s, 8);
+    }
+    WriteFile(pc / "point_time_minus_100", EncodeCdr(c));
+    // Layouts taken as they are but named by the node: row_step 0, many extra fields.
+    c = Cloud(4, 1, "t", 6);
+    c.row_step(0);
+    WriteFile(pc / "row_step_zero", EncodeCdr(c));
+    c = Cloud(2, 1, "t", 6);
+    for (int i = 0; i < 100; ++i) c.fields().push_back(Field("e" + std::to_string(i), i % 20, 2));
+    WriteFile(pc / "many_fields", EncodeCdr(c));
+    c = Cloud(4, 1, "t", 6);
+    c.fields().clear();
+    WriteFile(pc / "no_fields", EncodeCdr(c));
+  }
 
   const fs::path imu = out / "fuzz_cdr_imu";
   ppf::ImuSample s;
@@ -167,6 +196,13 @@ int main(int argc, char** argv) {
   s.angular_velocity = Eigen::Vector3d(0.01, -0.02, 0.3);
   s.linear_acceleration = Eigen::Vector3d(0.1, 0.2, 9.81);
   WriteFile(imu / "at_rest", EncodeCdr(ppf::bridge::ToImuMsg(s, "imu_link")));
+  {
+    auto m = ppf::bridge::ToImuMsg(s, "imu_link");
+    builtin_interfaces::msg::Time t = m.header().stamp();
+    t.nanosec(4000000000u);
+    m.header().stamp(t);
+    WriteFile(imu / "header_nanosec_4e9", EncodeCdr(m));
+  }
   s.linear_acceleration.z() = std::nan("");
   WriteFile(imu / "nan_acceleration", EncodeCdr(ppf::bridge::ToImuMsg(s, "imu_link")));
 
@@ -189,6 +225,29 @@ int main(int argc, char** argv) {
   WriteFile(tf / "float32_time_at_end",
             TimeFieldSeed(3 * 2, 5.0, 3, 16,
                           {{{0, 0, 7}}, {{1, 4, 7}}, {{2, 8, 7}}, {{5, 12, 7}}, {{3, 12, 7}}}, pts));
+
+  // Point times off the sweep: one float32 relative time 1e6 s late; float64 absolute times 100 s
+  // before the stamp.
+  {
+    std::vector<uint8_t> late, early;
+    for (int i = 0; i < 3; ++i) {
+      const uint8_t* p = reinterpret_cast<const uint8_t*>(xyz[i].data());
+      late.insert(late.end(), p, p + 12);
+      const float t = i == 1 ? 1e6f : 0.03f * static_cast<float>(i);
+      const uint8_t* tb = reinterpret_cast<const uint8_t*>(&t);
+      late.insert(late.end(), tb, tb + 4);
+      early.insert(early.end(), p, p + 12);
+      const double a = 1700000000.0 - 100.0 + 0.03 * i;
+      const uint8_t* ab = reinterpret_cast<const uint8_t*>(&a);
+      early.insert(early.end(), ab, ab + 8);
+    }
+    WriteFile(tf / "relative_float32_plus_1e6",
+              TimeFieldSeed(0, 1700000000.0, 3, 16,
+                            {{{0, 0, 7}}, {{1, 4, 7}}, {{2, 8, 7}}, {{5, 12, 7}}}, late));
+    WriteFile(tf / "absolute_float64_minus_100",
+              TimeFieldSeed(0, 1700000000.0, 3, 20,
+                            {{{0, 0, 7}}, {{1, 4, 7}}, {{2, 8, 7}}, {{6, 12, 8}}}, early));
+  }
 
   const fs::path work = fs::temp_directory_path() / "ppf_fuzz_make_seeds";
   WriteFile(out / "fuzz_bag_mcap" / "uncompressed", SmallBag(work, ppf::bag::Storage::kMcap, "none", 4 << 20));

@@ -123,6 +123,10 @@ struct TimeMap {
   double base = 0.0;
   double scale = 1.0;
   double stamp_s = 0.0;
+  // The plausible sweep window (time_field.hpp); infinite without a time field.
+  double lo = -std::numeric_limits<double>::infinity();
+  double hi = std::numeric_limits<double>::infinity();
+  bool Plausible(double t) const { return t >= lo && t <= hi; }
   double At(size_t i, const uint8_t* p) const {
     if (raw) return base + raw[i] * scale;
     if (!field) return stamp_s;
@@ -134,15 +138,33 @@ struct TimeMap {
 
 // Where raw time zero lies: nowhere for absolute times (base 0), the header stamp for times
 // relative to the scan start, and stamp - last time for stamp-at-end clouds whose times are
-// non-negative (times ending at 0 are offsets from the end already).
-double TimeBase(const TimeFieldInfo& info, double stamp_s, const std::vector<double>& raw_t) {
+// non-negative (times ending at 0 are offsets from the end already). The last time is the last
+// plausible one (an offset of at most `span`): a corrupt offset must not shift every point.
+double TimeBase(const TimeFieldInfo& info, double stamp_s, const std::vector<double>& raw_t,
+                double span) {
   if (info.absolute) return 0.0;
   if (!info.stamp_at_end) return stamp_s;
   double hi = -std::numeric_limits<double>::infinity();
   for (double v : raw_t) {
-    if (std::isfinite(v)) hi = std::max(hi, v * info.unit_scale_s);
+    const double offset = v * info.unit_scale_s;
+    if (std::isfinite(offset) && offset <= span) hi = std::max(hi, offset);
   }
   return std::isfinite(hi) && hi > 0.0 ? stamp_s - hi : stamp_s;
+}
+
+// The plausible sweep window of field times around the header stamp (time_field.hpp): after a
+// scan-start stamp, before a scan-end stamp, either side of it for absolute times.
+void SetPlausibleWindow(const TimeFieldInfo& info, double stamp_s, double span, TimeMap* times) {
+  if (info.absolute) {
+    times->lo = stamp_s - span;
+    times->hi = stamp_s + span;
+  } else if (info.stamp_at_end) {
+    times->lo = stamp_s - span;
+    times->hi = stamp_s + kEarlyPointTimeS;
+  } else {
+    times->lo = stamp_s - kEarlyPointTimeS;
+    times->hi = stamp_s + span;
+  }
 }
 
 // The coordinate and intensity fields of a validated cloud (intensity null when absent or not
@@ -161,7 +183,7 @@ struct PointFields {
 
 // What one thread's range of DecodeAllFloat32 kept: its points start at `begin` of the output.
 struct DecodedRange {
-  size_t begin = 0, kept = 0, dropped = 0;
+  size_t begin = 0, kept = 0, dropped = 0, bad_time = 0;
   double t_lo = 0.0, t_hi = 0.0;  // first-found min / max of the kept times (SetTimeSpan's)
 };
 
@@ -172,7 +194,7 @@ struct DecodedRange {
 void DecodeAllFloat32Range(const CloudView& cloud, const PointFields& f, const TimeMap& times,
                            size_t begin, size_t end, TimedPoint* dst, DecodedRange* range) {
   range->begin = begin;
-  size_t kept = begin, dropped = 0;
+  size_t kept = begin, dropped = 0, bad_time = 0;
   double lo = 0.0, hi = 0.0;
   const uint32_t ox = f.x->offset, oy = f.y->offset, oz = f.z->offset;
   const uint32_t oi = f.intensity ? f.intensity->offset : 0;
@@ -181,6 +203,10 @@ void DecodeAllFloat32Range(const CloudView& cloud, const PointFields& f, const T
     const double t = times.At(i, p);
     if (!(std::abs(x) <= 1e30 && std::abs(y) <= 1e30 && std::abs(z) <= 1e30) || !std::isfinite(t)) {
       ++dropped;
+      return;
+    }
+    if (!times.Plausible(t)) {
+      ++bad_time;
       return;
     }
     if (kept == begin) lo = hi = t;
@@ -198,6 +224,7 @@ void DecodeAllFloat32Range(const CloudView& cloud, const PointFields& f, const T
   });
   range->kept = kept - begin;
   range->dropped = dropped;
+  range->bad_time = bad_time;
   range->t_lo = lo;
   range->t_hi = hi;
 }
@@ -231,6 +258,7 @@ void DecodeAllFloat32(const CloudView& cloud, const PointFields& f, const TimeMa
     if (r.begin != kept) std::copy(dst + r.begin, dst + r.begin + r.kept, dst + kept);
     kept += r.kept;
     out->dropped_nan += r.dropped;
+    out->dropped_bad_time += r.bad_time;
     if (r.kept == 0) continue;
     out->t_begin = any ? std::min(out->t_begin, r.t_lo) : r.t_lo;
     out->t_end = any ? std::max(out->t_end, r.t_hi) : r.t_hi;
@@ -258,6 +286,10 @@ void DecodeGeneral(const CloudView& cloud, const PointFields& f, const TimeMap& 
     // float64 coordinates beyond float range would overflow the conversion: treat as invalid.
     if (!xyz.allFinite() || xyz.cwiseAbs().maxCoeff() > 1e30 || !std::isfinite(tp.t)) {
       ++out->dropped_nan;
+      return;
+    }
+    if (!times.Plausible(tp.t)) {
+      ++out->dropped_bad_time;
       return;
     }
     tp.p = xyz.cast<float>();
@@ -471,8 +503,12 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
     } else {
       times.raw = raw_t_.data();
     }
-    times.base = TimeBase(info_, cloud.stamp_s, raw_t_);
+    // Two scan periods: a sweep that takes longer than the configured period (a slower LiDAR
+    // than configured, packet delays) keeps its points.
+    const double span = 2.0 * (options_.scan_period_s > 0.0 ? options_.scan_period_s : 0.1);
+    times.base = TimeBase(info_, cloud.stamp_s, raw_t_, span);
     times.scale = info_.unit_scale_s;
+    SetPlausibleWindow(info_, cloud.stamp_s, span, &times);
   }
   const bool all_float32 = fields.XyzFloat32() && (!fields.intensity || fields.IntensityFloat32());
   if (all_float32) {

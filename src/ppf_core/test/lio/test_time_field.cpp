@@ -135,13 +135,15 @@ TEST(TimeField, ConfigOverridesNameAndUnit) {
   ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error)) << error;
   EXPECT_EQ(decoder.info().name, "t_us");
   for (size_t i = 0; i < pts.size(); ++i) ASSERT_NEAR(scan.points[i].t, pts[i].t, 1e-6);
-  // Forcing "absolute" makes the same values absolute seconds (tiny): the override wins.
+  // Forcing "absolute" makes the same values absolute seconds (tiny): the override wins, and
+  // times 10 s before the header stamp are no times of this sweep: every point is dropped.
   TimeFieldOptions abs_opt = opt;
   abs_opt.reference = TimeReference::kAbsolute;
   TimeFieldDecoder abs_decoder(abs_opt);
   ASSERT_TRUE(abs_decoder.Decode(cloud.view, &scan, &error));
   EXPECT_TRUE(abs_decoder.info().absolute);
-  EXPECT_LT(scan.t_end, 1.0);
+  EXPECT_TRUE(scan.points.empty());
+  EXPECT_EQ(scan.dropped_bad_time, pts.size());
 }
 
 TEST(TimeField, NoTimeFieldNoDeskewUsesStamp) {
@@ -250,6 +252,87 @@ TEST(TimeField, NanPointsDroppedAndCounted) {
   EXPECT_EQ(scan.input_points, pts.size());
 }
 
+// A point time far outside the sweep (a corrupt value, a driver bug) is dropped and counted in
+// every convention, and the scan's time span stays that of the other points: the facade would
+// otherwise wait for IMU coverage 1e6 s ahead, or take the scan for time going backwards.
+TEST(TimeField, ImplausiblePointTimesDroppedAndCounted) {
+  struct Case {
+    const char* label;
+    TimeEncoding enc;
+    double t0;
+    StampPosition stamp;
+  };
+  const Case cases[] = {
+      {"relative_start_f32", Enc("time", FieldType::kFloat32, 1.0, false, false, false), 5.0,
+       StampPosition::kAuto},
+      {"relative_to_end_f32", Enc("time", FieldType::kFloat32, 1.0, false, true, true), 5.0,
+       StampPosition::kAuto},
+      // Non-negative offsets, stamp at the end: the last offset places every point (TimeBase).
+      {"offsets_stamp_end_f32", Enc("time", FieldType::kFloat32, 1.0, false, true, false), 5.0,
+       StampPosition::kEnd},
+      {"absolute_f64", Enc("timestamp", FieldType::kFloat64, 1.0, true, false, false),
+       1700000000.75, StampPosition::kAuto},
+      {"relative_start_u32ns", Enc("t", FieldType::kUint32, 1e-9, false, false, false), 5.0,
+       StampPosition::kAuto},
+  };
+  for (const Case& c : cases) {
+    std::vector<SimPoint> pts = StaticScan(c.t0);
+    const double t_begin = pts.front().t, t_end = pts.back().t;
+    // uint32 ns cannot hold -100 s or 1e6 s: 4.2 s (the largest value) is as implausible.
+    const bool u32 = c.enc.type == FieldType::kUint32;
+    pts[5].t += u32 ? 4.0 : 1e6;
+    pts[9].t -= u32 ? 0.0 : 100.0;
+    pts[12].t += u32 ? 0.5 : -100.0;
+    // A first clean scan fixes the convention, as a driver's first scan would.
+    TimeFieldOptions opt;
+    opt.stamp_position = c.stamp;
+    TimeFieldDecoder decoder(opt);
+    DecodedScan scan;
+    std::string error;
+    const test::CloudBuffer clean = test::MakeCloud(StaticScan(c.t0), t_begin, t_end, c.enc);
+    ASSERT_TRUE(decoder.Decode(clean.view, &scan, &error)) << error;
+    EXPECT_EQ(scan.dropped_bad_time, 0u) << c.label;
+    const test::CloudBuffer cloud = test::MakeCloud(pts, t_begin, t_end, c.enc);
+    ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error)) << error;
+    EXPECT_EQ(scan.dropped_bad_time, u32 ? 2u : 3u) << c.label;
+    EXPECT_EQ(scan.points.size() + scan.dropped_bad_time, pts.size()) << c.label;
+    EXPECT_NEAR(scan.t_begin, t_begin, 1e-6) << c.label;
+    EXPECT_NEAR(scan.t_end, t_end, 1e-6) << c.label;
+    for (const TimedPoint& p : scan.points) {
+      ASSERT_GE(p.t, t_begin - 1e-6) << c.label;
+      ASSERT_LE(p.t, t_end + 1e-6) << c.label;
+    }
+  }
+}
+
+// The window follows time.scan_period: a sweep of 0.25 s keeps its points with a period of
+// 0.25 s and loses the part beyond 2 x 0.1 s with the default.
+TEST(TimeField, SweepWindowFollowsTheScanPeriod) {
+  test::LidarModel m;
+  m.rings = 4;
+  m.azimuth_steps = 91;  // no point within 2 ms of 0.2 s: float32 rounding decides nothing
+  m.period = 0.25;
+  const auto pose = [](double) { return Eigen::Isometry3d::Identity(); };
+  const std::vector<SimPoint> pts =
+      test::SimulateScan(test::MakeRoomScene(), pose, Eigen::Isometry3d::Identity(), 2.0, m);
+  const test::CloudBuffer cloud = test::MakeCloud(pts, 2.0, pts.back().t, TimeEncoding());
+  size_t late = 0;
+  for (const SimPoint& p : pts) late += p.t - 2.0 > 0.2 + 1e-6 ? 1 : 0;
+  ASSERT_GT(late, 0u);
+  DecodedScan scan;
+  std::string error;
+  TimeFieldDecoder defaults;
+  ASSERT_TRUE(defaults.Decode(cloud.view, &scan, &error)) << error;
+  EXPECT_EQ(scan.dropped_bad_time, late);
+  EXPECT_LE(scan.t_end, 2.2 + 1e-6);
+  TimeFieldOptions slow;
+  slow.scan_period_s = 0.25;
+  TimeFieldDecoder configured(slow);
+  ASSERT_TRUE(configured.Decode(cloud.view, &scan, &error)) << error;
+  EXPECT_EQ(scan.dropped_bad_time, 0u);
+  EXPECT_EQ(scan.points.size(), pts.size());
+}
+
 // Random layouts and bytes: Decode either rejects or returns finite points, never reads outside
 // the buffer (run under -fsanitize=address to check the latter).
 TEST(TimeField, FuzzedLayoutsNeverCrash) {
@@ -293,7 +376,7 @@ TEST(TimeField, FuzzedLayoutsNeverCrash) {
         ASSERT_TRUE(p.p.allFinite());
         ASSERT_TRUE(std::isfinite(p.t));
       }
-      EXPECT_EQ(scan.points.size() + scan.dropped_nan, scan.input_points);
+      EXPECT_EQ(scan.points.size() + scan.dropped_nan + scan.dropped_bad_time, scan.input_points);
     } else {
       EXPECT_FALSE(error.empty());
     }

@@ -16,6 +16,13 @@
 //
 // Without a time field the scan is either treated as instantaneous (no de-skew) or its times are
 // estimated from the azimuth of each point assuming a spinning LiDAR (NoTimePolicy).
+//
+// Plausible sweep window: a field time more than kEarlyPointTimeS before the header stamp of a
+// scan-start stamp, or later than two scan periods (TimeFieldOptions::scan_period_s) after it, is
+// not a time of this sweep (mirrored for a stamp at the scan end; both sides of the stamp for
+// absolute times, whose stamp may be either end). Such a point is dropped and counted
+// (DecodedScan::dropped_bad_time) and never moves t_begin / t_end: one corrupt value must not make
+// the scan wait for IMU coverage far ahead, or look as if time went backwards.
 #pragma once
 
 #include <cstddef>
@@ -44,6 +51,7 @@ struct DecodedScan {
   double t_end = 0.0;              // max point time
   size_t input_points = 0;         // width * height
   size_t dropped_nan = 0;          // non-finite (or |coordinate| > 1e30) coordinates or time
+  size_t dropped_bad_time = 0;     // finite time outside the plausible sweep window (above)
   bool has_time_field = false;
   bool times_estimated = false;    // azimuth estimate used
   std::string note;                // e.g. "no time field: times estimated from azimuth"
@@ -86,6 +94,10 @@ class TimeFieldDecoder {
 // Checks the layout of `cloud` (x/y/z present, offsets inside point_step, buffer size). Returns
 // "" if usable, otherwise a human-readable reason.
 std::string ValidateCloudLayout(const CloudView& cloud);
+
+// How far before a scan-start header stamp a point time may lie (drivers that stamp the first
+// packet's arrival may be a few milliseconds late).
+constexpr double kEarlyPointTimeS = 0.01;
 
 // Field names tried, in order, when TimeFieldOptions::field_name is empty.
 const std::vector<std::string>& KnownTimeFieldNames();

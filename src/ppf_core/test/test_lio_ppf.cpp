@@ -2,6 +2,7 @@
 // residual sources and map insertion.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -105,6 +106,209 @@ TEST(LioPpf, NanPointsAreCounted) {
   EXPECT_EQ(r.dropped_nan, 25u);
   EXPECT_EQ(r.input_points, pts.size());
   EXPECT_EQ(r.status, Status::kOk);
+}
+
+// A corrupt point time neither holds the scan back (waiting for IMU coverage 1e6 s ahead) nor
+// resets the filter (time "going backwards"): the point is dropped and counted; a scan whose times
+// are mostly corrupt is skipped with its reason, and the next scan goes on.
+TEST(LioPpf, ImplausiblePointTimesAreDroppedNotTrusted) {
+  std::vector<std::string> warns;
+  Config config;
+  config.log = [&](LogLevel level, const std::string& m) {
+    if (level == LogLevel::kWarn) warns.push_back(m);
+  };
+  LioPpf lio(config);
+  FeedStill(&lio, 0.0, 1.45);
+  const test::CloudBuffer s1 = StillScan(1.0);
+  ASSERT_EQ(lio.ProcessScan(s1.view).status, Status::kOk);
+
+  test::LidarModel lidar;
+  lidar.azimuth_steps = 360;
+  const test::PoseFn still = [](double) { return Eigen::Isometry3d::Identity(); };
+  const auto scan_at = [&](double t0) {
+    return test::SimulateScan(test::MakeRoomScene(), still, Eigen::Isometry3d::Identity(), t0,
+                              lidar);
+  };
+  std::vector<test::SimPoint> pts = scan_at(1.1);
+  const double t_last = pts.back().t;
+  pts[3].t += 1e6;
+  pts[4].t -= 100.0;
+  const test::CloudBuffer glitch = test::MakeCloud(pts, 1.1, t_last, test::TimeEncoding());
+  lio.AddScan(glitch.view);
+  std::vector<ScanResult> rs = lio.Process();  // no flush: covered by the IMU up to t_last
+  ASSERT_EQ(rs.size(), 1u);
+  EXPECT_EQ(rs[0].status, Status::kOk) << rs[0].reason;
+  EXPECT_EQ(rs[0].points_bad_time, 2u);
+  EXPECT_NEAR(rs[0].stamp_s, t_last, 1e-6);
+  EXPECT_NEAR(rs[0].scan_begin_s, 1.1, 1e-6);
+  const size_t map_points = lio.map_stats().points;
+
+  pts = scan_at(1.2);
+  const double t_last2 = pts.back().t;
+  for (test::SimPoint& p : pts) p.t -= 100.0;
+  const test::CloudBuffer early = test::MakeCloud(pts, 1.2, t_last2, test::TimeEncoding());
+  lio.AddScan(early.view);
+  rs = lio.Process();
+  ASSERT_EQ(rs.size(), 1u);
+  EXPECT_EQ(rs[0].status, Status::kRejected);
+  EXPECT_NE(rs[0].reason.find("sweep window"), std::string::npos) << rs[0].reason;
+  EXPECT_EQ(rs[0].points_bad_time, pts.size());
+  EXPECT_TRUE(lio.initialized());
+  EXPECT_EQ(lio.map_stats().points, map_points);
+
+  const test::CloudBuffer s3 = StillScan(1.3);
+  lio.AddScan(s3.view);
+  rs = lio.Process();
+  ASSERT_EQ(rs.size(), 1u);
+  EXPECT_EQ(rs[0].status, Status::kOk) << rs[0].reason;
+  EXPECT_EQ(rs[0].points_bad_time, 0u);
+  // One line for both scans (rate limited), none about a reset.
+  size_t window_lines = 0;
+  for (const std::string& w : warns) {
+    window_lines += w.find("sweep window") != std::string::npos ? 1 : 0;
+    EXPECT_EQ(w.find("reset"), std::string::npos) << w;
+  }
+  EXPECT_EQ(window_lines, 1u);
+}
+
+size_t CountContaining(const std::vector<std::string>& lines, const std::string& what) {
+  size_t n = 0;
+  for (const std::string& l : lines) n += l.find(what) != std::string::npos ? 1 : 0;
+  return n;
+}
+
+// Each stamp of 0.3 s comes twice, a wrong copy (acc +5 m/s^2, gyro +1 rad/s) before or after
+// the right one: the copy that fits the samples either side is integrated, whatever the arrival
+// order, and the conflicts are counted and named.
+TEST(LioPpf, ConflictingImuDuplicatesKeepTheConsistentCopy) {
+  std::vector<std::string> warns;
+  Config config;
+  config.log = [&](LogLevel level, const std::string& m) {
+    if (level == LogLevel::kWarn) warns.push_back(m);
+  };
+  LioPpf lio(config);
+  FeedStill(&lio, 0.0, 1.2);
+  const test::CloudBuffer s1 = StillScan(1.0);
+  ASSERT_EQ(lio.ProcessScan(s1.view).status, Status::kOk);
+  size_t stamps = 0;
+  for (double t = 1.205; t <= 1.5; t += 0.005, ++stamps) {
+    ImuSample bad = Still(t);
+    bad.linear_acceleration.x() += 5.0;
+    bad.angular_velocity.z() += 1.0;
+    if (stamps % 2 == 0) lio.AddImu(bad);
+    lio.AddImu(Still(t));
+    lio.AddImu(Still(t));  // a plain redelivery of the right copy: not a conflict
+    if (stamps % 2 == 1) lio.AddImu(bad);
+  }
+  lio.AddImu(Still(1.5025));  // completes the stamp after the last conflict ...
+  lio.AddImu(Still(1.505));   // ... which is then decided
+  const test::CloudBuffer s2 = StillScan(1.3);
+  const ScanResult r = lio.ProcessScan(s2.view);
+  EXPECT_EQ(r.status, Status::kOk) << r.reason;
+  EXPECT_EQ(r.imu_conflicts, stamps);
+  EXPECT_EQ(r.imu_conflicts_unresolved, 0u);
+  EXPECT_LT(r.T_world_imu.translation().norm(), 0.01);
+  EXPECT_LT(r.velocity_world.norm(), 0.01);
+  EXPECT_LT(Eigen::AngleAxisd(r.T_world_imu.linear()).angle(), 1e-3);
+  const InputStats st = lio.input_stats();
+  EXPECT_EQ(st.imu_conflicts, stamps);
+  EXPECT_EQ(st.imu_duplicates, stamps);  // the redeliveries of the right copy
+  EXPECT_EQ(CountContaining(warns, "IMU samples in conflict"), 1u);  // rate limited: 0.3 s
+}
+
+// Two copies equally far from their neighbours: neither is integrated.
+TEST(LioPpf, ImuConflictWithoutAConsistentCopyKeepsNeither) {
+  LioPpf lio;
+  FeedStill(&lio, 0.0, 1.2);
+  const test::CloudBuffer s1 = StillScan(1.0);
+  ASSERT_EQ(lio.ProcessScan(s1.view).status, Status::kOk);
+  ImuSample up = Still(1.205), down = Still(1.205);
+  up.linear_acceleration.x() += 3.0;
+  down.linear_acceleration.x() -= 3.0;
+  lio.AddImu(up);
+  lio.AddImu(down);
+  FeedStill(&lio, 1.21, 1.45);
+  const test::CloudBuffer s2 = StillScan(1.3);
+  const ScanResult r = lio.ProcessScan(s2.view);
+  EXPECT_EQ(r.status, Status::kOk) << r.reason;
+  EXPECT_EQ(r.imu_conflicts, 1u);
+  EXPECT_EQ(r.imu_conflicts_unresolved, 1u);
+  EXPECT_LT(r.velocity_world.norm(), 0.01);
+}
+
+// Gaps the propagation integrates across without a word (below imu.max_gap) are still counted
+// and named, each once; a short one (0.05 s) is not.
+TEST(LioPpf, EveryImuGapOverMaxGapWarnIsCountedAndNamed) {
+  std::vector<std::string> warns;
+  Config config;
+  config.log = [&](LogLevel level, const std::string& m) {
+    if (level == LogLevel::kWarn) warns.push_back(m);
+  };
+  LioPpf lio(config);
+  FeedStill(&lio, 0.0, 1.2);
+  const test::CloudBuffer s1 = StillScan(1.0);
+  ASSERT_EQ(lio.ProcessScan(s1.view).status, Status::kOk);
+  FeedStill(&lio, 1.205, 1.3);
+  FeedStill(&lio, 1.5, 1.6);   // 0.2 s silent
+  FeedStill(&lio, 1.65, 2.6);  // 0.05 s: not a gap to report
+  FeedStill(&lio, 3.0, 3.2);   // 0.4 s silent (< imu.max_gap 0.5 s: integrated across)
+  const test::CloudBuffer s2 = StillScan(3.05);
+  const ScanResult r = lio.ProcessScan(s2.view);
+  EXPECT_EQ(r.status, Status::kOk) << r.reason;
+  EXPECT_EQ(r.imu_gaps, 2u);
+  EXPECT_NEAR(r.imu_gap_longest_s, 0.4, 1e-3);
+  EXPECT_EQ(lio.input_stats().imu_gaps, 2u);
+  EXPECT_EQ(CountContaining(warns, "imu.max_gap_warn"), 2u);
+  // The next result reports only what came after it.
+  FeedStill(&lio, 3.205, 3.3);
+  const test::CloudBuffer s3 = StillScan(3.15);
+  EXPECT_EQ(lio.ProcessScan(s3.view).imu_gaps, 0u);
+}
+
+// The IMU clock 5 s behind the LiDAR's, both streams live, the IMU shaking (no static start): the
+// moving start waited for IMU coverage that never comes (kInitializing for good). Now the offset
+// is named once, the scans are registered LiDAR-only with valid poses, and when the clocks agree
+// again the IMU is taken up without a reset.
+TEST(LioPpf, ImuClockSecondsBehindRunsLidarOnlyUntilTheClocksAgree) {
+  std::vector<std::string> warns, infos;
+  Config config;
+  config.log = [&](LogLevel level, const std::string& m) {
+    (level == LogLevel::kWarn ? warns : infos).push_back(m);
+  };
+  LioPpf lio(config);
+  double t_imu = 3.0;
+  std::vector<ScanResult> rs;
+  const auto step = [&](double t_scan, double imu_behind_s) {
+    t_imu = std::max(t_imu, t_scan - imu_behind_s);
+    for (; t_imu <= t_scan + 0.1 - imu_behind_s + 1e-9; t_imu += 0.005) {
+      ImuSample s = Still(t_imu);
+      s.linear_acceleration.x() = 3.0 * std::sin(15.0 * t_imu);
+      lio.AddImu(s);
+    }
+    const test::CloudBuffer c = StillScan(t_scan);
+    lio.AddScan(c.view);
+    for (ScanResult& r : lio.Process()) rs.push_back(std::move(r));
+  };
+  int k = 0;
+  for (; k < 25; ++k) step(9.0 + 0.1 * k, 5.0);
+  ASSERT_EQ(rs.size(), 25u);
+  EXPECT_EQ(CountContaining(warns, "s behind the LiDAR's"), 1u);
+  for (int i = 12; i < 25; ++i) {
+    EXPECT_TRUE(rs[i].pose_valid) << i << ": " << rs[i].reason;
+    EXPECT_NEAR(rs[i].imu_clock_offset_s, 5.0, 0.15) << i;
+    EXPECT_TRUE(rs[i].lidar_only) << i;
+    EXPECT_LT(rs[i].T_world_lidar.translation().norm(), 0.02) << i;
+  }
+  EXPECT_GT(lio.input_stats().imu_clock_offset_dropped, 0u);
+  // The IMU clock catches up: after kClockOffsetScans agreeing scans the IMU is used again.
+  for (; k < 40; ++k) step(9.0 + 0.1 * k, 0.0);
+  ASSERT_EQ(rs.size(), 40u);
+  EXPECT_EQ(CountContaining(infos, "clocks agree again"), 1u);
+  for (int i = 25; i < 40; ++i) {
+    EXPECT_NE(rs[i].status, Status::kReset) << i << ": " << rs[i].reason;
+    EXPECT_TRUE(rs[i].pose_valid) << i << ": " << rs[i].reason;
+  }
+  EXPECT_EQ(rs.back().imu_clock_offset_s, 0.0);
 }
 
 TEST(LioPpf, TimeGoingBackwardsResets) {

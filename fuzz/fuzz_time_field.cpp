@@ -1,5 +1,6 @@
 // Fuzz target: the per-point time decoder on arbitrary cloud layouts, without the CDR layer in
-// front (which rarely produces a well-formed header around interesting field tables). The input
+// front (which rarely produces a well-formed header around interesting field tables), including
+// point times far outside the sweep (seeds: 1e6 s late, 100 s early). The input
 // is read as a small layout description followed by the point bytes; layout values are biased
 // towards the ranges real drivers use so the search reaches the decoding paths, not only the
 // layout rejections.
@@ -86,9 +87,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     }
     return 0;
   }
-  if (scan.points.size() + scan.dropped_nan != scan.input_points) {
-    std::fprintf(stderr, "%zu points + %zu dropped != %zu input points\n", scan.points.size(),
-                 scan.dropped_nan, scan.input_points);
+  // Every input point is kept or counted: non-finite, or its time outside the sweep window.
+  if (scan.points.size() + scan.dropped_nan + scan.dropped_bad_time != scan.input_points) {
+    std::fprintf(stderr, "%zu points + %zu non-finite + %zu bad time != %zu input points\n",
+                 scan.points.size(), scan.dropped_nan, scan.dropped_bad_time, scan.input_points);
     std::abort();
   }
   for (const ppf::TimedPoint& p : scan.points) {

@@ -83,6 +83,7 @@ void NodeStats::CountResult(const ScanResult& r) {
   if (r.status == Status::kReset) ++summary_.resets;
   if (r.status == Status::kDegenerate) ++summary_.degenerate;
   summary_.points_nonfinite += r.dropped_nan;
+  summary_.points_bad_time += r.points_bad_time;
   if (r.imu_gap_s > 0.0) {
     ++summary_.imu_gaps_bridged;
     summary_.imu_gap_max_s = std::max(summary_.imu_gap_max_s, r.imu_gap_s);
@@ -206,6 +207,7 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " lidar_only_scans=" << s.lidar_only_scans << " lio_started_late=" << s.lio_started_late
     << " points_stalls=" << s.points_stalls << " imu_stalls=" << s.imu_stalls
     << " core_stalls=" << s.core_stalls << " scans_unusual=" << s.scans_unusual
+    << " points_bad_time=" << s.points_bad_time
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

@@ -1,7 +1,7 @@
-// Hostile inputs through DDS from an independent peer (issue 12): the Cyclone DDS program
+// Hostile inputs through DDS from an independent peer (issues 12 and 28): the Cyclone DDS program
 // (cyclone/cyclone_peer.c, --hostile) replays a simulated sequence into ppf_node and, once the
-// node is initialized, injects one defect per scan: every PointCloud2 and Imu defect the issue
-// lists. Per defect the node must refuse (or, for a valid but unusual cloud, process) it, say so
+// node is initialized, injects one defect per scan: every PointCloud2 and Imu defect the issues
+// list. Per defect the node must refuse (or, for a valid but unusual cloud, process) it, say so
 // in a clear rate-limited log line, count it in its summary, stay alive and publish odometry for
 // the next valid scan; the peer checks that odometry arrived for the scan after each defect.
 #include <gtest/gtest.h>
@@ -69,24 +69,26 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   // needless filter reset would end odometry (a restart needs rest).
   int clouds = 0, imus = 0;
   ASSERT_TRUE(ppf::test::SimulateDump(sim,
-                                      {"--scene", "indoor", "--lidar", "vlp16", "--duration", "8",
+                                      {"--scene", "indoor", "--lidar", "vlp16", "--duration", "9",
                                        "--seed", "2", "--storage", "mcap"},
                                       dir, &clouds, &imus));
-  ASSERT_GE(clouds, 75);
+  // After cloud 28: 16 clouds alternating cloud and IMU defects, 19 more defects one per cloud
+  // (the stall takes 20 clouds), and the scan that checks the last one.
+  ASSERT_GE(clouds, 28 + 16 + 19 + 19 + 1);
 
   ppf::test::PeerRun run;
   // Reliable sensor QoS: the ~67 MB "several million points" cloud must not be lost to a
   // dropped UDP fragment. Deep reader histories and scan queue: while the listener decodes that
   // cloud and the core registers it (seconds under ThreadSanitizer), the burst of 30 and the IMU
   // stream must neither overwrite unread samples nor evict valid scans. A short log interval
-  // (defects are 0.2 s apart per kind) so each defect's own line shows; the burst of 30 is still
-  // suppressed.
+  // (defects are 0.1 s apart) so each defect's own line shows; the burst of 30 is still
+  // suppressed. A status line every 0.25 s, so the 2 s stall shows in them.
   ASSERT_NO_FATAL_FAILURE(
       ppf::test::RunNodeAndPeer(PPF_CYCLONE_PEER, dir, ppf::test::TestDomainId(31),
                                 "core: {config_file: \"" PPF_CONFIG_DIR "/vlp16.yaml\"}\n"
                                 "qos: {sensor_reliability: reliable, sensor_depth: 200}\n"
                                 "queues: {scan_capacity: 100}\n"
-                                "diagnostics: {malformed_log_interval_s: 0.05}\n",
+                                "diagnostics: {malformed_log_interval_s: 0.05, period_s: 0.25}\n",
                                 {"--hostile", "28"}, &run));
   const std::string& s = run.summary;
   const std::string& log = run.log;
@@ -94,7 +96,7 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   // Every defect went out, and for each one the peer got odometry for the scan after it (or for
   // the replacing cloud itself).
   EXPECT_EQ(SummaryField(run.result, "write_errors"), 0);
-  EXPECT_EQ(SummaryField(run.result, "hostile_checks"), 26);
+  EXPECT_EQ(SummaryField(run.result, "hostile_checks"), 35);
   EXPECT_EQ(SummaryField(run.result, "hostile_checks_failed"), 0);
   for (const auto& l : run.peer) {
     if (l.rfind("HOSTILE_CHECK", 0) == 0) {
@@ -127,8 +129,71 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   EXPECT_GE(unknown_lines, 2);
   EXPECT_LE(unknown_lines, kInstrumented ? 30 : 10);
   EXPECT_GE(SuppressedIn(log, bad), kInstrumented ? 2 : 8) << "the burst was not rate limited";
-  EXPECT_EQ(unknown_lines + SuppressedIn(log, bad), 32);
-  EXPECT_EQ(SummaryField(s, "scans_malformed"), 8 + 32);
+  // Every malformed cloud accounted for, in a line of its own or a "+N" (the stall's share the
+  // same limiter as the burst's).
+  const int flushed_lines =
+      CountLinesWith(log, "similar since the last line) last: rejected malformed PointCloud2");
+  EXPECT_EQ(CountLinesWith(log, bad) - flushed_lines + SuppressedIn(log, bad),
+            SummaryField(s, "scans_malformed"));
+  EXPECT_EQ(SummaryField(s, "scans_malformed"), 8 + 2 + 20 + 32);
+
+  // Header stamp with nanosec 4e9 (before: read as 4 s ahead, the IMU declared lost and the next
+  // 40 scans dropped as late): refused as malformed, cloud and IMU alike.
+  EXPECT_EQ(CountLinesWith(log, ": header.stamp.nanosec 4000000000 is out of range"), 1);
+  EXPECT_EQ(CountLinesWith(log, "Imu on rt/imu: IMU sample's header.stamp.nanosec 4000000000"), 1);
+  // No field table at all: said so, not as a missing x/y/z.
+  EXPECT_EQ(CountLinesWith(log, "cloud declares no fields (x, y and z are needed)"), 1);
+  // Usable but unusual clouds (processed in place of a scan, odometry checked above): each kind
+  // named once. row_step 0 is read as width * point_step (drivers have published it).
+  EXPECT_EQ(CountLinesWith(log, "has row_step 0: read as width * point_step"), 1);
+  EXPECT_EQ(CountLinesWith(log, "fields: only x, y, z and the time field are read"), 1);
+  EXPECT_TRUE(std::regex_search(log, std::regex("declares 50[0-9][0-9] fields")));
+  EXPECT_EQ(CountLinesWith(log, "has a frame_id of 200000 bytes"), 1);
+  EXPECT_EQ(SummaryField(s, "scans_unusual"), 3);
+
+  // Point times off the sweep, in place of a valid scan (before: one point 1e6 s ahead stopped
+  // the core, every point 100 s back reset it): the bad points dropped and counted, a scan made
+  // only of them rejected with the reason; no reset, odometry for the next scans (checked above).
+  const std::string past = PeerLine(run, "point_time_past");
+  ASSERT_FALSE(past.empty());
+  const double past_points = SummaryField(" " + past, "points");
+  EXPECT_GT(past_points, 1000) << past;
+  EXPECT_EQ(SummaryField(s, "points_bad_time"), 1 + past_points);
+  EXPECT_EQ(SummaryField(s, "scans_rejected"), 1);
+  EXPECT_GE(CountLinesWith(log, "point times outside the plausible sweep window"), 1);
+  EXPECT_EQ(CountLinesWith(log, "went backwards"), 0);
+
+  // 2 s of clouds each refused (x as int8): scans arrive, none is processed. The node says so
+  // once, with what the scans became, its status lines say stalled and never ok meanwhile, and
+  // the next valid scan gives odometry (HOSTILE_CHECK stall, above).
+  EXPECT_GE(CountLinesWith(log, "field 'x' must be float32 or float64"), 1);
+  const std::string stall_warn = "stalled: no scan processed for ";
+  // The 67 MB cloud keeps the core busy while the scans the peer held back behind it arrive: a
+  // true stall too, when that takes over a second (under a sanitizer, for seconds).
+  EXPECT_GE(SummaryField(s, "core_stalls"), 1);
+  EXPECT_LE(SummaryField(s, "core_stalls"), kInstrumented ? 10 : 2);
+  EXPECT_EQ(CountLinesWith(log, stall_warn), SummaryField(s, "core_stalls")) << log;
+  EXPECT_EQ(CountLinesWith(log, "scans processed again after"), SummaryField(s, "core_stalls"));
+  // The stall's WARN says what the scans became: every one refused at input.
+  EXPECT_TRUE(std::regex_search(
+      log, std::regex("while ([0-9]+) arrived \\(\\1 refused at input, 0 dropped")))
+      << "the stall's WARN names the refused scans";
+  {
+    std::stringstream ls(log);
+    std::string line;
+    bool in_stall = false, seen_stall = false;
+    int stalled_lines = 0;
+    while (std::getline(ls, line)) {
+      if (line.find(stall_warn) != std::string::npos) in_stall = seen_stall = true;
+      if (line.find("scans processed again after") != std::string::npos) in_stall = false;
+      if (in_stall && line.find("] status=") != std::string::npos) {
+        EXPECT_NE(line.find("status=stalled (no scan processed for "), std::string::npos) << line;
+        ++stalled_lines;
+      }
+    }
+    EXPECT_TRUE(seen_stall);
+    EXPECT_GE(stalled_lines, 1) << "no status line during the stall";
+  }
 
   // Well-formed clouds the node cannot use: empty, declared 5M points, stamp 0, stamp 11.6 days
   // ahead, stamp 3 s older than the scan before.
@@ -159,7 +224,7 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
 
   // Imu defects: NaN, 1e5 m/s^2, all zeros refused in the listener; a duplicate, a swapped pair,
   // one sample 10 s back and one 1000 s ahead dropped by the executor without a reset.
-  EXPECT_EQ(SummaryField(s, "imu_malformed"), 3);
+  EXPECT_EQ(SummaryField(s, "imu_malformed"), 4);
   EXPECT_EQ(CountLinesWith(log, "rejected malformed Imu on rt/imu: IMU sample has non-finite"), 1);
   EXPECT_EQ(CountLinesWith(log, "IMU sample beyond any IMU's range"), 1);
   EXPECT_EQ(CountLinesWith(log, "IMU sample is all zeros"), 1);
@@ -181,12 +246,12 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
 
   // Nothing else went missing or wrong: every valid (and replacing) cloud was processed, each
   // after initialization gave one odometry message, all received by the peer, finite, in order.
-  // Nothing vanished unseen: what did not arrive is counted lost (sequence gaps). 45 cloud
-  // defects follow valid clouds; 7 IMU defects (the swapped sample is not in sent_imu).
+  // Nothing vanished unseen: what did not arrive is counted lost (sequence gaps). 47 cloud
+  // defects follow valid clouds; 8 IMU defects (the swapped sample is not in sent_imu).
   EXPECT_EQ(SummaryField(s, "scans_received") + SummaryField(s, "scans_lost"),
-            SummaryField(run.result, "sent_scans") + 45);
+            SummaryField(run.result, "sent_scans") + 47);
   EXPECT_EQ(SummaryField(s, "imu_received") + SummaryField(s, "imu_lost"),
-            SummaryField(run.result, "sent_imu") + 7);
+            SummaryField(run.result, "sent_imu") + 8);
   // And nothing was lost (loopback, reliable, deep histories), instrumented node included: while
   // its listener decodes the 67 MB cloud (seconds under a sanitizer) IMU datagrams overflow its
   // socket buffer, and the peer's 10 s IMU history lets them be sent again.
@@ -194,10 +259,11 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   EXPECT_EQ(SummaryField(s, "imu_lost"), 0);
   EXPECT_EQ(SummaryField(s, "scans_dropped"), 0);
   EXPECT_EQ(SummaryField(run.result, "sent_scans"), clouds);
-  EXPECT_EQ(SummaryField(s, "scans_processed"), clouds);
-  EXPECT_EQ(SummaryField(s, "scans_received"), clouds + 8 + 32 + 5);
+  EXPECT_EQ(SummaryField(s, "scans_processed"), clouds - 20);  // the stall's 20 refused
+  EXPECT_EQ(SummaryField(s, "scans_received"), clouds + 8 + 2 + 32 + 5);
   const double published = SummaryField(s, "odometry_published");
-  EXPECT_EQ(published, clouds - SummaryField(s, "scans_initializing"));
+  EXPECT_EQ(published, clouds - 20 - SummaryField(s, "scans_initializing") - 1)
+      << "odometry for every processed scan but the one rejected for its point times";
   EXPECT_EQ(SummaryField(run.result, "odom"), published);
   EXPECT_EQ(SummaryField(run.result, "odom_bad"), 0);
   EXPECT_EQ(SummaryField(run.result, "odom_not_monotonic"), 0);

@@ -32,6 +32,9 @@ struct NodeSummary {
   uint64_t scans_too_large = 0;   // more points than queues.max_cloud_points: skipped
   uint64_t scans_bad_stamp = 0;   // stamp <= 0, or far ahead of the IMU stream: skipped
   uint64_t points_nonfinite = 0;  // NaN/Inf points the core dropped from scans it processed
+  // Points the core dropped for a time outside the plausible sweep window (ScanResult::
+  // points_bad_time); a scan left with too few is rejected with the reason.
+  uint64_t points_bad_time = 0;
   uint64_t imu_duplicate = 0;     // same stamp as the sample integrated before it: dropped
   // Stamps off the stream's timeline (> 0.5 s back or ahead) that the following samples did
   // not confirm: single outliers, dropped instead of restarting the filter.

@@ -8,10 +8,12 @@
  *
  * Options after the three positional arguments:
  *   --hostile N      after the N-th cloud, inject one defect per cloud of the dump (cloud and IMU
- *                    defects alternating: cloud_names, imu_names), ending with a burst of 30
- *                    malformed clouds. A defect either follows a valid message (it must be
- *                    refused, and the next valid scan must still give odometry) or replaces a
- *                    cloud by a valid but unusual one (it must give odometry itself). Prints
+ *                    defects alternating while IMU ones are left: cloud_names, imu_names), among
+ *                    them 2 s of clouds each replaced by a malformed copy (stall), ending with
+ *                    a burst of 30 malformed clouds. A defect either follows a valid message (it
+ *                    must be refused, and the next valid scan must still give odometry) or
+ *                    replaces a cloud by a valid but unusual one (it must give odometry itself),
+ *                    or by a malformed one (stall: the scan after it must). Prints
  *                    "HOSTILE name=..." per defect and at the end "HOSTILE_CHECK name=... scan=S
  *                    odom=0|1": whether odometry arrived for the scan stamped S.
  *   --imu-gap S L    send no IMU from S s to S+L s after the first message (clouds go on).
@@ -190,7 +192,7 @@ typedef struct {
   const endpoints_t* e;
   int sent_scans, sent_imu, write_errors, skipped_imu, defects_sent;
   int64_t bag0;
-  int clouds_read, hostile_step, imu_defect;
+  int clouds_read, hostile_step, imu_defect, stall_left;
   check_t checks[64];
   int n_checks;
   imu_t held; /* I_OUT_OF_ORDER: the sample sent after its successor */
@@ -226,21 +228,76 @@ static void send_imu(replay_t* r, const record_head_t* h, const imu_t* m) {
   }
 }
 
+/* C_STALL: valid cloud m goes out as its malformed copy; after the last one the next scan must
+ * give odometry again. */
+static void send_stall_copy(replay_t* r, const cloud_t* m) {
+  cloud_t c;
+  int nonfinite = 0;
+  make_cloud_defect(C_STALL, m, r->o->max_points, &c, &nonfinite);
+  if (dds_write(r->e->w_points, &c) < 0)
+    r->write_errors++;
+  else
+    r->sent_scans++;
+  free_cloud(&c);
+  if (--r->stall_left == 0) {
+    r->checks[r->n_checks].name = cloud_names[C_STALL];
+    r->checks[r->n_checks++].check = -1;
+  }
+}
+
 static void send_cloud(replay_t* r, const cloud_t* m) {
   const double stamp = m->header.stamp.sec + 1e-9 * m->header.stamp.nanosec;
   ++r->clouds_read;
-  for (int i = 0; i < r->n_checks; ++i)
-    if (r->checks[i].check < 0) r->checks[i].check = stamp;
-  int defect = -1;
+  /* A cloud that cannot give odometry does not answer the pending checks: the next one does. */
+  if (r->stall_left > 0) {
+    send_stall_copy(r, m);
+    return;
+  }
+  int defect = -1, imu_defect = -1;
   if (r->o->hostile_from >= 0 && r->clouds_read > r->o->hostile_from) {
+    /* Cloud and IMU defects alternate while there are IMU defects left, then one cloud defect
+     * per cloud. */
     const int j = r->hostile_step++;
-    if (j % 2 == 0 && j / 2 < C_COUNT) defect = j / 2;
-    if (j % 2 == 1 && j / 2 < I_COUNT) {
-      r->imu_defect = j / 2;
-      r->checks[r->n_checks].name = imu_names[j / 2];
-      r->checks[r->n_checks++].check = -1; /* the next scan */
-      printf("HOSTILE name=%s\n", imu_names[j / 2]);
+    if (j < 2 * I_COUNT) {
+      if (j % 2 == 0) defect = j / 2;
+      if (j % 2 == 1) imu_defect = j / 2;
+    } else if (I_COUNT + (j - 2 * I_COUNT) < C_COUNT) {
+      defect = I_COUNT + (j - 2 * I_COUNT);
     }
+  }
+  if (defect < 0 || !cloud_replaces_unusable(defect)) {
+    for (int i = 0; i < r->n_checks; ++i)
+      if (r->checks[i].check < 0) r->checks[i].check = stamp;
+  }
+  if (imu_defect >= 0) {
+    r->imu_defect = imu_defect;
+    r->checks[r->n_checks].name = imu_names[imu_defect];
+    r->checks[r->n_checks++].check = -1; /* the next scan */
+    printf("HOSTILE name=%s\n", imu_names[imu_defect]);
+  }
+  if (defect >= 0 && cloud_replaces_unusable(defect) && defect != C_STALL) {
+    cloud_t c;
+    int nonfinite = 0;
+    make_cloud_defect(defect, m, r->o->max_points, &c, &nonfinite);
+    if (dds_write(r->e->w_points, &c) < 0)
+      r->write_errors++;
+    else
+      r->sent_scans++;
+    r->defects_sent++;
+    r->checks[r->n_checks].name = cloud_names[defect];
+    r->checks[r->n_checks++].check = -1; /* the next scan */
+    printf("HOSTILE name=%s points=%u\n", cloud_names[defect], c.width * c.height);
+    fflush(stdout);
+    free_cloud(&c);
+    return;
+  }
+  if (defect == C_STALL) {
+    printf("HOSTILE name=%s copies=%d\n", cloud_names[C_STALL], kStallClouds);
+    fflush(stdout);
+    r->defects_sent += kStallClouds;
+    r->stall_left = kStallClouds;
+    send_stall_copy(r, m);
+    return;
   }
   cloud_t c;
   int nonfinite = 0, copies = 0;

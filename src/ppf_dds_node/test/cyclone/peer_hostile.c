@@ -3,6 +3,7 @@
 
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -34,16 +35,31 @@ static sensor_msgs_msg_dds__PointField_* find_field(cloud_t* c, const char* name
   return NULL;
 }
 
-const char* const cloud_names[C_COUNT] = {
-    "point_step_small", "data_short",      "data_long",   "row_step",      "big_endian",
-    "unknown_type",     "duplicate_field", "missing_xyz", "offset_beyond", "empty",
-    "stamp_zero",       "far_future",      "stale",       "too_large",     "huge",
-    "nan_points",       "organized",       "burst",       "burst_tail"};
-int cloud_replaces(int d) { return d == C_HUGE || d == C_NAN_POINTS || d == C_ORGANIZED; }
+/* The per-point time field of the simulated clouds (float32 seconds after the stamp), or NULL. */
+static sensor_msgs_msg_dds__PointField_* find_time_field(cloud_t* c) {
+  sensor_msgs_msg_dds__PointField_* t = find_field(c, "time");
+  return t && t->datatype == 7 ? t : NULL; /* FLOAT32 */
+}
 
-const char* const imu_names[I_COUNT] = {"imu_nan",       "imu_absurd",       "imu_zeros",
-                                        "imu_duplicate", "imu_out_of_order", "imu_jump_back",
-                                        "imu_future"};
+const char* const cloud_names[C_COUNT] = {
+    "point_step_small", "data_short",      "data_long",      "row_step",      "big_endian",
+    "unknown_type",     "duplicate_field", "missing_xyz",    "stall",         "header_nanosec",
+    "no_fields",        "offset_beyond",   "empty",          "stamp_zero",    "far_future",
+    "stale",            "too_large",       "huge",           "nan_points",    "organized",
+    "point_time_future", "point_time_past", "row_step_zero", "many_fields",   "long_frame_id",
+    "burst",            "burst_tail"};
+int cloud_replaces(int d) {
+  return d == C_HUGE || d == C_NAN_POINTS || d == C_ORGANIZED || d == C_ROW_STEP_ZERO ||
+         d == C_MANY_FIELDS || d == C_LONG_FRAME_ID || d == C_POINT_TIME_FUTURE;
+}
+int cloud_replaces_unusable(int d) { return d == C_POINT_TIME_PAST || d == C_STALL; }
+
+const char* const imu_names[I_COUNT] = {"imu_nan",       "imu_absurd",        "imu_zeros",
+                                        "imu_duplicate", "imu_out_of_order",  "imu_jump_back",
+                                        "imu_future",    "imu_header_nanosec"};
+
+/* Extra fields of C_MANY_FIELDS, and the length of C_LONG_FRAME_ID's frame_id. */
+enum { kManyFields = 5000, kLongFrameId = 200000 };
 
 int make_cloud_defect(int d, const cloud_t* m, size_t max_points, cloud_t* c, int* nonfinite) {
   const uint32_t n = m->width * m->height, step = m->point_step;
@@ -68,6 +84,24 @@ int make_cloud_defect(int d, const cloud_t* m, size_t max_points, cloud_t* c, in
       c->width = n * reps;
       c->height = 1;
       c->row_step = c->width * step;
+      return 1;
+    }
+    case C_MANY_FIELDS: {
+      /* Valid: extra one-byte fields inside the point, each with its own name. */
+      *c = clone_cloud(m, m->data._length);
+      const uint32_t n0 = c->fields._length;
+      c->fields._buffer = (sensor_msgs_msg_dds__PointField_*)realloc(
+          c->fields._buffer, (n0 + kManyFields) * sizeof(sensor_msgs_msg_dds__PointField_));
+      for (uint32_t i = 0; i < kManyFields; ++i) {
+        char name[32];
+        snprintf(name, sizeof(name), "extra_%u", i);
+        sensor_msgs_msg_dds__PointField_* f = &c->fields._buffer[n0 + i];
+        f->name = strdup(name);
+        f->offset = i % step;
+        f->datatype = 2; /* UINT8 */
+        f->count = 1;
+      }
+      c->fields._length = c->fields._maximum = n0 + kManyFields;
       return 1;
     }
     case C_ORGANIZED: {
@@ -123,6 +157,47 @@ int make_cloud_defect(int d, const cloud_t* m, size_t max_points, cloud_t* c, in
     case C_STALE:
       c->header.stamp.sec -= 3;
       break;
+    case C_HEADER_NANOSEC:
+      c->header.stamp.nanosec = 4000000000u; /* out of range: read as stamp + 4 s before */
+      break;
+    case C_ROW_STEP_ZERO:
+      c->row_step = 0; /* as some drivers publish unorganized clouds */
+      break;
+    case C_NO_FIELDS:
+      for (uint32_t i = 0; i < c->fields._length; ++i) free(c->fields._buffer[i].name);
+      c->fields._length = 0;
+      break;
+    case C_LONG_FRAME_ID: {
+      /* Made once, kept to the end of the run (the header's frame_id is not the clone's own). */
+      static char* id = NULL;
+      if (!id) {
+        id = (char*)malloc(kLongFrameId + 1);
+        memset(id, 'f', kLongFrameId);
+        id[kLongFrameId] = 0;
+      }
+      c->header.frame_id = id;
+      break;
+    }
+    case C_POINT_TIME_FUTURE: {
+      /* One point 1e6 s after the stamp (before: the core waited for IMU that far ahead). */
+      sensor_msgs_msg_dds__PointField_* t = find_time_field(c);
+      const float far = 1e6f;
+      if (t && n > 0) memcpy(c->data._buffer + (size_t)(n / 2) * step + t->offset, &far, 4);
+      break;
+    }
+    case C_POINT_TIME_PAST: {
+      /* Every point 100 s before the stamp (before: a reset, "scan time went backwards"). */
+      sensor_msgs_msg_dds__PointField_* t = find_time_field(c);
+      const float past = -100.0f;
+      for (uint32_t i = 0; t && i < n; ++i)
+        memcpy(c->data._buffer + (size_t)i * step + t->offset, &past, 4);
+      break;
+    }
+    case C_STALL: {
+      sensor_msgs_msg_dds__PointField_* x = find_field(c, "x");
+      if (x) x->datatype = 1; /* INT8: x must be a float */
+      break;
+    }
     case C_TOO_LARGE:
       c->width = 5000000; /* declared only: refused before the data is looked at */
       c->height = 1;
@@ -170,6 +245,9 @@ int make_imu_defect(int d, const imu_t* m, const imu_t* held, imu_t* out) {
       return 1;
     case I_FUTURE:
       out->header.stamp.sec += 1000;
+      return 1;
+    case I_HEADER_NANOSEC:
+      out->header.stamp.nanosec = 4000000000u;
       return 1;
     default:
       return 0;

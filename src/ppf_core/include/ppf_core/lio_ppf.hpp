@@ -87,6 +87,12 @@
 // arrival; ScanResult::imu_conflicts, one WARN). Every gap between valid IMU samples longer than
 // imu.max_gap_warn (0.1 s) is counted (ScanResult::imu_gaps, imu_gap_longest_s) and named in one
 // WARN. input_stats() has the totals.
+// Clock offset: while IMU samples keep arriving between scans but the newest is a second or more
+// behind every scan's end (10 scans in a row), the IMU's clock runs behind the LiDAR's: one WARN
+// names the offset, the samples are not used, and the scans are registered LiDAR-only (the
+// IMU-loss fallback if LIO ran, else as without an IMU; ScanResult::imu_clock_offset_s). When
+// the clocks agree again for as many scans, the IMU is taken up (LIO resumes, or starts as a late
+// IMU), without a reset. An IMU ahead is not judged: a core lagging behind its input sees that.
 // Malformed clouds return Status::kRejected and change nothing.
 #pragma once
 

@@ -166,6 +166,15 @@ void CoreExecutor::FeedImu(const ImuSample& s) {
   }
   // The stream went on where it was: what waited for confirmation was an outlier.
   if (!imu_candidates_.empty()) DropImuCandidates();
+  // The same stamp again with other values is a conflict: the core decides which copy fits the
+  // samples on either side (arrival order says nothing), so it gets them all. An exact copy
+  // (a redelivery) is dropped here.
+  if (have && s.stamp_s == last_imu_fed_ &&
+      (s.angular_velocity != last_imu_.angular_velocity ||
+       s.linear_acceleration != last_imu_.linear_acceleration)) {
+    AddImuToCore(s);
+    return;
+  }
   if (have && s.stamp_s == last_imu_fed_) {
     stats_.Add(&NodeSummary::imu_duplicate);
     imu_dup_log_.Log(Level::kError, "IMU sample at " + std::to_string(s.stamp_s) +
@@ -185,6 +194,7 @@ void CoreExecutor::FeedImu(const ImuSample& s) {
 void CoreExecutor::AddImuToCore(const ImuSample& s) {
   core_->AddImu(s);
   last_imu_fed_ = s.stamp_s;
+  last_imu_ = s;
 }
 
 void CoreExecutor::DropImuCandidates() {

@@ -69,6 +69,7 @@ class CoreExecutor {
   std::atomic<bool> drain_requested_{false};
 
   double last_imu_fed_ = -std::numeric_limits<double>::infinity();
+  ImuSample last_imu_;  // the sample last fed, to tell a redelivered copy from a conflicting one
   double last_scan_fed_ = -std::numeric_limits<double>::infinity();
   std::vector<ImuSample> imu_candidates_;  // off the timeline, waiting for confirmation
   std::deque<PendingScan> pending_;

@@ -84,6 +84,7 @@ void NodeStats::CountResult(const ScanResult& r) {
   if (r.status == Status::kDegenerate) ++summary_.degenerate;
   summary_.points_nonfinite += r.dropped_nan;
   summary_.points_bad_time += r.points_bad_time;
+  CountImuInput(r);
   if (r.imu_gap_s > 0.0) {
     ++summary_.imu_gaps_bridged;
     summary_.imu_gap_max_s = std::max(summary_.imu_gap_max_s, r.imu_gap_s);
@@ -104,6 +105,16 @@ void NodeStats::CountResult(const ScanResult& r) {
 void NodeStats::CountNotice(const ScanResult& r) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (r.status == Status::kReset) ++summary_.resets;
+  CountImuInput(r);
+}
+
+// The core reports its IMU input counts since the previous result on whichever result comes
+// next, a notice included: each is summed once.
+void NodeStats::CountImuInput(const ScanResult& r) {
+  summary_.imu_conflicts += r.imu_conflicts;
+  summary_.imu_conflicts_unresolved += r.imu_conflicts_unresolved;
+  summary_.imu_gaps += r.imu_gaps;
+  summary_.imu_gap_warn_max_s = std::max(summary_.imu_gap_warn_max_s, r.imu_gap_longest_s);
 }
 
 std::pair<uint64_t, uint64_t> NodeStats::Lost() const {
@@ -207,7 +218,9 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " lidar_only_scans=" << s.lidar_only_scans << " lio_started_late=" << s.lio_started_late
     << " points_stalls=" << s.points_stalls << " imu_stalls=" << s.imu_stalls
     << " core_stalls=" << s.core_stalls << " scans_unusual=" << s.scans_unusual
-    << " points_bad_time=" << s.points_bad_time
+    << " points_bad_time=" << s.points_bad_time << " imu_conflicts=" << s.imu_conflicts
+    << " imu_conflicts_unresolved=" << s.imu_conflicts_unresolved << " imu_gaps=" << s.imu_gaps
+    << " imu_gap_warn_max_s=" << s.imu_gap_warn_max_s
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

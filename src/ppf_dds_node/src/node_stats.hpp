@@ -86,6 +86,8 @@ class NodeStats {
   static std::string FormatSummary(const NodeSummary& s);
 
  private:
+  void CountImuInput(const ScanResult& r);  // with mutex_ held
+
   mutable std::mutex mutex_;
   NodeSummary summary_;
   // Core stall watch (under mutex_): the scans received since the last result, the first and

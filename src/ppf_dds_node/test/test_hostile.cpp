@@ -72,9 +72,9 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
                                       {"--scene", "indoor", "--lidar", "vlp16", "--duration", "9",
                                        "--seed", "2", "--storage", "mcap"},
                                       dir, &clouds, &imus));
-  // After cloud 28: 16 clouds alternating cloud and IMU defects, 19 more defects one per cloud
+  // After cloud 28: 18 clouds alternating cloud and IMU defects, 18 more defects one per cloud
   // (the stall takes 20 clouds), and the scan that checks the last one.
-  ASSERT_GE(clouds, 28 + 16 + 19 + 19 + 1);
+  ASSERT_GE(clouds, 28 + 18 + 18 + 19 + 1);
 
   ppf::test::PeerRun run;
   // Reliable sensor QoS: the ~67 MB "several million points" cloud must not be lost to a
@@ -96,7 +96,7 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   // Every defect went out, and for each one the peer got odometry for the scan after it (or for
   // the replacing cloud itself).
   EXPECT_EQ(SummaryField(run.result, "write_errors"), 0);
-  EXPECT_EQ(SummaryField(run.result, "hostile_checks"), 35);
+  EXPECT_EQ(SummaryField(run.result, "hostile_checks"), 36);
   EXPECT_EQ(SummaryField(run.result, "hostile_checks_failed"), 0);
   for (const auto& l : run.peer) {
     if (l.rfind("HOSTILE_CHECK", 0) == 0) {
@@ -230,6 +230,13 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   EXPECT_EQ(CountLinesWith(log, "IMU sample is all zeros"), 1);
   EXPECT_EQ(SummaryField(s, "imu_duplicate"), 1);
   EXPECT_EQ(CountLinesWith(log, "has the stamp of the sample before it (duplicate): dropped"), 1);
+  // 0.5 s of samples each preceded by a copy with its stamp and other values (+5 m/s^2,
+  // +1 rad/s). Before: the first by arrival was kept, the valid ones dropped as duplicates
+  // (imu_duplicate 100) and the pose drifted off. Now every stamp is a conflict the core
+  // decides by the samples on either side, counted and named; no duplicates, no reset.
+  EXPECT_EQ(SummaryField(s, "imu_conflicts"), 100);
+  EXPECT_EQ(SummaryField(s, "imu_conflicts_unresolved"), 0);
+  EXPECT_GE(CountLinesWith(log, "IMU samples in conflict"), 1);
   // The swapped pair is sorted back in the listener's queue, or, if the executor had already
   // integrated the later sample, dropped as late (logged): one of the two, never both.
   EXPECT_EQ(SummaryField(s, "imu_out_of_order") + SummaryField(s, "imu_late"), 1);
@@ -247,11 +254,12 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   // Nothing else went missing or wrong: every valid (and replacing) cloud was processed, each
   // after initialization gave one odometry message, all received by the peer, finite, in order.
   // Nothing vanished unseen: what did not arrive is counted lost (sequence gaps). 47 cloud
-  // defects follow valid clouds; 8 IMU defects (the swapped sample is not in sent_imu).
+  // defects follow valid clouds; 8 IMU defects (the swapped sample is not in sent_imu) and the
+  // 100 conflicting copies.
   EXPECT_EQ(SummaryField(s, "scans_received") + SummaryField(s, "scans_lost"),
             SummaryField(run.result, "sent_scans") + 47);
   EXPECT_EQ(SummaryField(s, "imu_received") + SummaryField(s, "imu_lost"),
-            SummaryField(run.result, "sent_imu") + 8);
+            SummaryField(run.result, "sent_imu") + 8 + 100);
   // And nothing was lost (loopback, reliable, deep histories), instrumented node included: while
   // its listener decodes the 67 MB cloud (seconds under a sanitizer) IMU datagrams overflow its
   // socket buffer, and the peer's 10 s IMU history lets them be sent again.

@@ -35,7 +35,14 @@ struct NodeSummary {
   // Points the core dropped for a time outside the plausible sweep window (ScanResult::
   // points_bad_time); a scan left with too few is rejected with the reason.
   uint64_t points_bad_time = 0;
-  uint64_t imu_duplicate = 0;     // same stamp as the sample integrated before it: dropped
+  uint64_t imu_duplicate = 0;     // same stamp and values as the sample before it: dropped
+  // Stamps that came with different values (ScanResult::imu_conflicts): the core kept the copy
+  // consistent with the samples on either side, or, unresolved, neither.
+  uint64_t imu_conflicts = 0;
+  uint64_t imu_conflicts_unresolved = 0;
+  // Gaps between valid IMU samples longer than the core's imu.max_gap_warn, and the longest.
+  uint64_t imu_gaps = 0;
+  double imu_gap_warn_max_s = 0;
   // Stamps off the stream's timeline (> 0.5 s back or ahead) that the following samples did
   // not confirm: single outliers, dropped instead of restarting the filter.
   uint64_t imu_outliers = 0;

@@ -192,7 +192,7 @@ typedef struct {
   const endpoints_t* e;
   int sent_scans, sent_imu, write_errors, skipped_imu, defects_sent;
   int64_t bag0;
-  int clouds_read, hostile_step, imu_defect, stall_left;
+  int clouds_read, hostile_step, imu_defect, stall_left, conflict_left;
   check_t checks[64];
   int n_checks;
   imu_t held; /* I_OUT_OF_ORDER: the sample sent after its successor */
@@ -205,6 +205,19 @@ static void send_imu(replay_t* r, const record_head_t* h, const imu_t* m) {
       h->bag_ns - r->bag0 < (int64_t)((o->gap_start + o->gap_len) * 1e9)) {
     r->skipped_imu++; /* the IMU falls silent, the LiDAR goes on */
     return;
+  }
+  if (r->imu_defect == I_CONFLICT) {
+    r->conflict_left = kConflictSamples;
+    r->imu_defect = -1;
+  }
+  if (r->conflict_left > 0) {
+    /* The wrong copy first: a receiver keeping the first by arrival keeps the wrong one. */
+    imu_t bad = *m;
+    bad.linear_acceleration.x += 5.0;
+    bad.angular_velocity.z += 1.0;
+    if (dds_write(r->e->w_imu, &bad) < 0) r->write_errors++;
+    r->defects_sent++;
+    r->conflict_left--;
   }
   if (r->imu_defect == I_OUT_OF_ORDER && !r->holding) {
     r->held = *m;

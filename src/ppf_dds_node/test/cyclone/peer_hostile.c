@@ -56,7 +56,7 @@ int cloud_replaces_unusable(int d) { return d == C_POINT_TIME_PAST || d == C_STA
 
 const char* const imu_names[I_COUNT] = {"imu_nan",       "imu_absurd",        "imu_zeros",
                                         "imu_duplicate", "imu_out_of_order",  "imu_jump_back",
-                                        "imu_future",    "imu_header_nanosec"};
+                                        "imu_future",    "imu_header_nanosec", "imu_conflict"};
 
 /* Extra fields of C_MANY_FIELDS, and the length of C_LONG_FRAME_ID's frame_id. */
 enum { kManyFields = 5000, kLongFrameId = 200000 };

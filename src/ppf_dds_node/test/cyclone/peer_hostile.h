@@ -64,8 +64,12 @@ enum {
   I_JUMP_BACK,
   I_FUTURE,
   I_HEADER_NANOSEC,
+  I_CONFLICT,
   I_COUNT
 };
+/* I_CONFLICT: for this many samples, a copy with the same stamp and other values (+5 m/s^2,
+ * +1 rad/s) goes out before each valid one. */
+enum { kConflictSamples = 100 };
 extern const char* const imu_names[I_COUNT];
 
 /* Builds IMU defect d from the valid sample m just sent into *out; I_OUT_OF_ORDER sends `held`,

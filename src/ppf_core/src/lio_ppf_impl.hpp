@@ -144,6 +144,8 @@ struct LioPpf::Impl {
   void SetLidarOnlyPrior();
   void PredictGyro(double t_end, PoseTrace* trace);
   CoarseAlignment AlignGuesses(double t_end);
+  void AddAlongTrackGuesses(const Eigen::Isometry3d& T_world_lidar, const Eigen::Vector3d& v_world,
+                            double dt, std::vector<MotionHypothesis>* h) const;
   void RedeskewLidarOnly(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end);
 
   Config config;
@@ -186,6 +188,7 @@ struct LioPpf::Impl {
   ConstantVelocityModel motion;    // LiDAR-only prediction (IMU frame poses)
   std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
   std::deque<double> lio_fits;     // LIO: posterior fits of the last scans (consistency check)
+  std::deque<double> lio_steps_rot, lio_steps_pos;  // ... and the scan-alone steps (deg, m)
   bool contradicted = false;       // this scan's pose fits the map poorly and no guess did better
   size_t ignored_imu = 0;
   // IMU loss (lio_ppf.hpp): LIO running, but scans are registered LiDAR-only until IMU samples

@@ -125,6 +125,9 @@ CoarseAlignment LioPpf::Impl::AlignGuesses(double t_end) {
     turned("turn y-", Eigen::Vector3d::UnitY(), -a);
   }
   LidarOnlyOptions options = config.lidar_only;
+  const size_t before_along = h.size();
+  if (fallback_scan) AddAlongTrackGuesses(T_cv * T_il, motion.velocity_world(), dt, &h);
+  if (h.size() > before_along) options.good_fit = 1.0;  // along a street many places fit well
   if (recent_fits.size() >= 3) {
     std::vector<double> sorted(recent_fits.begin(), recent_fits.end());
     std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
@@ -140,6 +143,31 @@ CoarseAlignment LioPpf::Impl::AlignGuesses(double t_end) {
   frame.T_world_lidar_predicted = c.T_world_lidar;
   SetLidarOnlyPrior();
   return c;
+}
+
+// After a long gap without IMU (an IMU loss, both streams silent) the speed along the way is
+// unknown by what an unmeasured acceleration (imu.gap_acc_std, 3 sigma) makes of it over dt; the
+// coarse alignment reaches about one neighbour distance from a guess, and along a street the
+// parallel walls fit almost anywhere: guesses every neighbour distance along the velocity, up to
+// that reach, all of them aligned (the one explaining the most points wins).
+void LioPpf::Impl::AddAlongTrackGuesses(const Eigen::Isometry3d& T_world_lidar,
+                                        const Eigen::Vector3d& v_world, double dt,
+                                        std::vector<MotionHypothesis>* h) const {
+  constexpr int kMaxPerSide = 20;
+  const double spacing = std::max(config.knn.max_neighbor_distance, 0.25);
+  const double reach = 0.5 * 3.0 * config.gap_acc_std * dt * dt;
+  if (v_world.norm() < 0.5 || reach < spacing) return;
+  const Eigen::Vector3d u = v_world.normalized();
+  const int n = std::min(kMaxPerSide, static_cast<int>(std::ceil(reach / spacing)));
+  for (int k = 1; k <= n; ++k) {
+    for (int sign : {1, -1}) {
+      Eigen::Isometry3d T = T_world_lidar;
+      T.translation() += sign * k * spacing * u;
+      std::ostringstream os;
+      os << "along " << (sign > 0 ? "+" : "-") << k * spacing << " m";
+      h->push_back({os.str(), T});
+    }
+  }
 }
 
 namespace {

@@ -261,8 +261,12 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
   }
   state.P.block<3, 3>(kRot, kRot) = P_rot;
   state.P.block<3, 3>(kPos, kPos) = P_pos;
+  // The chord is the mean velocity over the gap, not the velocity at its end: what an unmeasured
+  // acceleration makes of it over the gap (as for a bridged gap, WidenForGap) is unknown too.
+  const double v_gap = config.gap_acc_std * imu_loss_gap_s;
   state.P.block<3, 3>(kVel, kVel) =
-      2.0 * P_pos / (dt * dt) + v_spread.squaredNorm() * Eigen::Matrix3d::Identity();
+      2.0 * P_pos / (dt * dt) +
+      (v_spread.squaredNorm() + v_gap * v_gap) * Eigen::Matrix3d::Identity();
   // Samples from before the gap would be interpolated across it.
   while (!imu.empty() && imu.front().stamp_s < imu_back_stamp_s) imu.pop_front();
   imu_lost = false;
@@ -336,51 +340,90 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   const ConsistencyOptions& co = config.consistency;
   const Eigen::Isometry3d& T_il = config.T_imu_lidar;
   if (rep.skipped) return rep;
+  const double wide = config.lidar_only.coarse_max_residual;
   const ScanFrame sample = SampleFrame(frame, co.fit_points);
-  const FitScore fit = ScoreFit(sample, state.T_world_imu() * T_il, config.lidar_only, config.knn);
-  r->fit = fit.fit;
-  auto remember = [this](double f) {
+  auto probe_at = [&](const NavState& s) {
+    return ProbePose(sample, s.T_world_imu() * T_il, config.lidar_only, config.knn, config.iekf,
+                     wide);
+  };
+  // Beyond the bounds and well beyond what the scan alone says on the recent scans (a scene whose
+  // own matches scatter more, a kPpf map of scattered points only, must not set it off).
+  auto median = [](const std::deque<double>& d) {
+    if (d.empty()) return 0.0;
+    std::vector<double> v(d.begin(), d.end());
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  const double usual_rot = 3.0 * median(lio_steps_rot), usual_pos = 3.0 * median(lio_steps_pos);
+  auto too_far = [&](const PoseProbe& p) {
+    const double rot_deg = p.step_rot.norm() * 180.0 / M_PI, pos = p.step_pos.norm();
+    return (pos > co.max_step_pos && pos > usual_pos) ||
+           (rot_deg > co.max_step_rot_deg && rot_deg > usual_rot);
+  };
+  const PoseProbe probe = probe_at(state);
+  const double fit = probe.score.fit;
+  r->fit = fit;
+  r->disagreement_rot_deg = probe.step_rot.norm() * 180.0 / M_PI;
+  r->disagreement_pos_m = probe.step_pos.norm();
+  auto remember = [this](double f, const PoseProbe& p) {
     lio_fits.push_back(f);
-    if (lio_fits.size() > 10) lio_fits.pop_front();
+    lio_steps_rot.push_back(p.step_rot.norm() * 180.0 / M_PI);
+    lio_steps_pos.push_back(p.step_pos.norm());
+    for (std::deque<double>* d : {&lio_fits, &lio_steps_rot, &lio_steps_pos}) {
+      if (d->size() > 10) d->pop_front();
+    }
   };
   if (lio_fits.size() < 5) {  // no baseline yet (a young map fits unevenly)
-    remember(fit.fit);
+    remember(fit, probe);
     return rep;
   }
   std::vector<double> sorted(lio_fits.begin(), lio_fits.end());
   std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
   const double baseline = sorted[sorted.size() / 2];
-  if (fit.fit >= co.fit_ratio * baseline) {
-    remember(fit.fit);
+  const bool poor_fit = fit < co.fit_ratio * baseline;
+  if (!poor_fit && !too_far(probe)) {
+    remember(fit, probe);
     return rep;
   }
 
-  // Guesses: the update's pose, the prediction, and the update's pose turned about the vertical
-  // (the map frame's gravity) through the sensor.
+  // Guesses: the update's pose, it moved by the scan's own step, the prediction, and the update's
+  // pose turned about the vertical (the map frame's gravity) through the sensor.
   const Eigen::Isometry3d T_post = state.T_world_imu() * T_il;
+  auto about_sensor = [&](const Eigen::Vector3d& rot, const Eigen::Vector3d& pos) {
+    Eigen::Isometry3d d = Eigen::Isometry3d::Identity();
+    d.linear() = SO3Exp(rot);
+    d.translation() = T_post.translation() - d.linear() * T_post.translation() + pos;
+    return d * T_post;
+  };
   std::vector<MotionHypothesis> h;
   h.push_back({"update", T_post});
+  h.push_back({"scan step", about_sensor(probe.step_rot, probe.step_pos)});
   h.push_back({"prediction", predicted.T_world_imu() * T_il});
   const Eigen::Vector3d up = -state.gravity_world.normalized();
   const double a = co.turn_deg * M_PI / 180.0;
   for (double k : {1.0, -1.0, 2.0, -2.0}) {
     if (!(a > 0.0)) break;
-    Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
-    turn.linear() = SO3Exp(up * (k * a));
-    turn.translation() = T_post.translation() - turn.linear() * T_post.translation();
     std::ostringstream os;
     os << "turn " << (k > 0 ? "+" : "") << k * co.turn_deg << " deg";
-    h.push_back({os.str(), turn * T_post});
+    h.push_back({os.str(), about_sensor(up * (k * a), Eigen::Vector3d::Zero())});
   }
+  // After a bridged gap the IMU's integration across it may be off along the way by metres.
+  if (r->imu_gap_s > 0.0) AddAlongTrackGuesses(T_post, state.v_world, r->imu_gap_s, &h);
   LidarOnlyOptions options = config.lidar_only;
-  options.good_fit = std::min(options.good_fit, baseline);
+  options.good_fit = 1.0;  // every guess: the winner is judged below, not by the first good fit
   const CoarseAlignment c = AlignHypotheses(frame, h, options, config.iekf, config.knn);
   r->guesses_tried = c.tried;
   r->motion_guess = c.name;
   std::ostringstream why;
   why.precision(2);
-  why << std::fixed << "the map contradicts the prediction (fit " << fit.fit << " < " << co.fit_ratio
-      << " x recent " << baseline << ")";
+  why << std::fixed << "the map contradicts the prediction (";
+  if (poor_fit) {
+    why << "fit " << fit << " < " << co.fit_ratio << " x recent " << baseline;
+  } else {
+    why << "the scan alone moves it " << r->disagreement_rot_deg << " deg, "
+        << r->disagreement_pos_m << " m";
+  }
+  why << ")";
 
   // The prediction moved to the aligned pose, its velocity turned with it, and the covariance
   // widened by each correction along its own direction.
@@ -400,23 +443,28 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   for (ResidualProvider* p : providers) p->BeginScan(frame);
   NavState s = anchored;
   const IekfReport rep2 = IekfUpdate(iekf, T_il, providers, &s);
-  const FitScore fit2 = ScoreFit(sample, s.T_world_imu() * T_il, config.lidar_only, config.knn);
-  if (rep2.skipped || !(fit2.fit >= fit.fit + co.min_gain)) {
+  const PoseProbe probe2 = probe_at(s);
+  const double fit2 = probe2.score.fit;
+  const bool better = fit2 >= fit + co.min_gain || (fit2 >= fit && too_far(probe) && !too_far(probe2));
+  if (rep2.skipped || !better) {
     // Nothing fits clearly better: the update's pose stands, and the status says it may be off.
-    why << "; no guess fits better (best " << c.name << ", " << fit2.fit << "): pose kept";
+    why << "; no guess does better (best " << c.name << ", fit " << fit2 << "): pose kept";
     Append(&r->reason, why.str());
-    contradicted = true;
-    remember(fit.fit);
+    contradicted = poor_fit;
+    remember(fit, probe);
+    for (ResidualProvider* p : providers) p->BeginScan(frame);
     return rep;
   }
   state = s;
-  r->fit = fit2.fit;
+  r->fit = fit2;
+  r->disagreement_rot_deg = probe2.step_rot.norm() * 180.0 / M_PI;
+  r->disagreement_pos_m = probe2.step_pos.norm();
   r->overruled = true;
   why << "; LiDAR overruled it by " << d_rot.norm() * 180.0 / M_PI << " deg, " << d_pos.norm()
-      << " m (guess " << c.name << ", fit " << fit2.fit << ")";
+      << " m (guess " << c.name << ", fit " << fit2 << ")";
   Append(&r->reason, why.str());
   Log(LogLevel::kWarn, why.str());
-  remember(fit2.fit);
+  remember(fit2, probe2);
   return rep2;
 }
 

@@ -132,7 +132,8 @@ void Trajectory::SetJolts(std::vector<Jolt> jolts) {
 }
 
 const Eigen::Isometry3d* Trajectory::JoltAt(double t) const {
-  const auto it = std::upper_bound(jolt_times_.begin(), jolt_times_.end(), t);
+  // Strictly after the jolt's time: the IMU sample (and the scan column) at t_j is the old path's.
+  const auto it = std::lower_bound(jolt_times_.begin(), jolt_times_.end(), t);
   if (it == jolt_times_.begin()) return nullptr;
   return &jolt_transforms_[static_cast<size_t>(it - jolt_times_.begin()) - 1];
 }

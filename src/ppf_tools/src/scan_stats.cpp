@@ -29,7 +29,8 @@ void WriteStatsCsvHeader(std::ostream& os) {
         "scattered_points,discarded_points,knn_residuals,skeleton_residuals,map_inserted,"
         "skeleton_patches,gyro_bias_x,gyro_bias_y,gyro_bias_z,acc_bias_x,acc_bias_y,acc_bias_z,"
         "gravity_map_x,gravity_map_y,gravity_map_z,skeleton_planes,fit,motion_guess,"
-        "guesses_tried,t_guesses_ms,correction_rot_deg,correction_pos_m,overruled\n";
+        "guesses_tried,t_guesses_ms,correction_rot_deg,correction_pos_m,overruled,"
+        "disagreement_rot_deg,disagreement_pos_m\n";
 }
 
 void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
@@ -53,7 +54,7 @@ void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
      << Quoted(r.motion_guess, '"') << ',' << r.guesses_tried << ',' << t.guesses;
   // How far the LiDAR moved the prediction, and whether it overruled it (Config::consistency).
   os << std::setprecision(4) << ',' << r.correction_rot_deg << ',' << r.correction_pos_m << ','
-     << (r.overruled ? 1 : 0);
+     << (r.overruled ? 1 : 0) << ',' << r.disagreement_rot_deg << ',' << r.disagreement_pos_m;
   os << '\n';
 }
 

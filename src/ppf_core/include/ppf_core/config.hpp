@@ -106,7 +106,13 @@ struct ConsistencyOptions {
   // A posterior fitting below this share of the median fit of the last scans is searched again.
   double fit_ratio = 0.7;
   int fit_points = 1000;  // sample of the downsampled scan that is scored
-  // The re-anchored posterior must fit at least this much better (share of the sample points).
+  // ... or the scan alone (ProbePose: one step of the rows within lidar_only.coarse_max_residual,
+  // no prior) would still move the posterior farther than this. The narrow gates hide a step of
+  // the position along the way from the fit: most points lie on surfaces parallel to it.
+  double max_step_pos = 0.1;       // m
+  double max_step_rot_deg = 0.5;   // degrees
+  // A re-anchored posterior is taken when it fits at least this much better (share of the sample
+  // points), or no worse while the scan alone no longer moves it past the bounds above.
   double min_gain = 0.1;
   // Guesses besides the posterior and the prediction: turned by +-turn and +-2 turn about the
   // vertical through the sensor (the coarse alignment reaches a few degrees from each).

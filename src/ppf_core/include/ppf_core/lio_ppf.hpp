@@ -256,6 +256,10 @@ struct ScanResult {
   // and a pose found from guesses around it fit clearly better: the prediction was re-anchored
   // there and the update ran again (Config::consistency). The reason and one WARN say how far.
   bool overruled = false;
+  // With consistency.check: how far the scan alone (wide gate, no prior; ProbePose) would still
+  // move the posterior; large values with overruled false say the map and the IMU disagree.
+  double disagreement_rot_deg = 0.0;
+  double disagreement_pos_m = 0.0;
 
   int iterations = 0;
   bool converged = false;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
+
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -76,6 +78,83 @@ FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar
     f.fit = static_cast<double>(inliers) / static_cast<double>(covered);
   }
   return f;
+}
+
+PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+                    const LidarOnlyOptions& options, const KnnOptions& knn,
+                    const IekfOptions& iekf, double wide_gate) {
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  PoseProbe probe;
+  if (frame.points_lidar.empty() || frame.map == nullptr || frame.map->size() == 0) return probe;
+  const VoxelMap& map = *frame.map;
+  const size_t k = static_cast<size_t>(std::max(3, knn.k));
+  const long n = static_cast<long>(frame.points_lidar.size());
+  const Eigen::Vector3d c = T_world_lidar.translation();
+  long covered = 0, inliers = 0, rows = 0;
+  Mat6 JtJ = Mat6::Zero();
+  Vec6 Jtr = Vec6::Zero();
+#ifdef _OPENMP
+  const int threads = knn.num_threads > 0 ? knn.num_threads : omp_get_max_threads();
+#endif
+#pragma omp parallel num_threads(threads) reduction(+ : covered, inliers, rows)
+  {
+    std::vector<Eigen::Vector3f> nn;
+    Mat6 JtJ_t = Mat6::Zero();
+    Vec6 Jtr_t = Vec6::Zero();
+#pragma omp for schedule(dynamic, 256)
+    for (long i = 0; i < n; ++i) {
+      const Eigen::Vector3d p =
+          T_world_lidar * frame.points_lidar[static_cast<size_t>(i)].cast<double>();
+      if (map.GetClosest(p.cast<float>(), k, knn.max_neighbor_distance, &nn) < k) continue;
+      ++covered;
+      Eigen::Vector3d normal;
+      double d;
+      if (!FitPlane(nn, knn.plane_threshold, &normal, &d, knn.min_plane_spread)) continue;
+      const double r = normal.dot(p) + d;
+      if (std::abs(r) < options.fit_gate) ++inliers;
+      if (!(std::abs(r) < wide_gate)) continue;
+      ++rows;
+      Vec6 j;
+      j.head<3>() = (p - c).cross(normal);
+      j.tail<3>() = normal;
+      JtJ_t.noalias() += j * j.transpose();
+      Jtr_t.noalias() += j * r;
+    }
+#pragma omp critical
+    {
+      JtJ += JtJ_t;
+      Jtr += Jtr_t;
+    }
+  }
+  probe.score.inliers = static_cast<size_t>(inliers);
+  probe.score.covered = static_cast<size_t>(covered);
+  if (covered > 0 && static_cast<double>(covered) >= 0.05 * static_cast<double>(n)) {
+    probe.score.fit = static_cast<double>(inliers) / static_cast<double>(covered);
+  }
+  probe.rows = static_cast<size_t>(rows);
+  if (rows < 6) return probe;
+  // Only along the directions the rows pin (the IEKF's thresholds): in a corridor the scan says
+  // nothing about the position along it, and a pseudo-step there would be noise.
+  Mat6 proj = Mat6::Zero();
+  auto strong = [](const Eigen::Matrix3d& info, double min_eig) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(info);
+    Eigen::Matrix3d p = Eigen::Matrix3d::Zero();
+    for (int i = 0; i < 3; ++i) {
+      if (es.eigenvalues()(i) >= min_eig) p += es.eigenvectors().col(i) * es.eigenvectors().col(i).transpose();
+    }
+    return p;
+  };
+  proj.topLeftCorner<3, 3>() = strong(JtJ.topLeftCorner<3, 3>(), iekf.degeneracy_min_eig_rotation);
+  proj.bottomRightCorner<3, 3>() =
+      strong(JtJ.bottomRightCorner<3, 3>(), iekf.degeneracy_min_eig_translation);
+  const Mat6 A = proj * JtJ * proj + (Mat6::Identity() - proj);
+  const Vec6 step = -A.ldlt().solve(proj * Jtr);
+  if (step.allFinite()) {
+    probe.step_rot = step.head<3>();
+    probe.step_pos = step.tail<3>();
+  }
+  return probe;
 }
 
 CoarseAlignment AlignHypotheses(const ScanFrame& frame,

@@ -22,7 +22,7 @@ struct TrajectoryState {
   Eigen::Vector3d euler = Eigen::Vector3d::Zero();  // roll, pitch, yaw (rad)
 };
 
-// A step of the true path at time t that no IMU sample contains: from t on, the rest of the path
+// A step of the true path at time t that no IMU sample contains: after t, the rest of the path
 // is turned by yaw about the vertical through the position at t and moved by dx along the
 // heading there. A turn about the vertical leaves the specific force and the body rate unchanged
 // (gravity is vertical), so an IMU synthesized from the stepped path equals the undisturbed one:

@@ -66,4 +66,19 @@ ScanFrame SampleFrame(const ScanFrame& frame, int max_points);
 FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
                   const LidarOnlyOptions& options, const KnnOptions& knn);
 
+// ScoreFit plus what the scan alone says about the pose, from the same neighbours: one
+// Gauss-Newton step of the point-to-plane rows within `wide_gate` (no prior, equal weights),
+// rotation about the LiDAR's position and translation, both in the world frame. Directions the
+// rows do not constrain (eigenvalues of their J^T J below the IEKF's degeneracy thresholds) take
+// no step. A pose the IMU got wrong by what the narrow gates hide shows here as a long step.
+struct PoseProbe {
+  FitScore score;
+  Eigen::Vector3d step_rot = Eigen::Vector3d::Zero();  // rad, world frame
+  Eigen::Vector3d step_pos = Eigen::Vector3d::Zero();  // m, world frame
+  size_t rows = 0;
+};
+PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+                    const LidarOnlyOptions& options, const KnnOptions& knn,
+                    const IekfOptions& iekf, double wide_gate);
+
 }  // namespace ppf

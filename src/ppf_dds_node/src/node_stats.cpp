@@ -84,6 +84,7 @@ void NodeStats::CountResult(const ScanResult& r) {
   if (r.status == Status::kDegenerate) ++summary_.degenerate;
   summary_.points_nonfinite += r.dropped_nan;
   summary_.points_bad_time += r.points_bad_time;
+  summary_.lidar_overruled += r.overruled;
   CountImuInput(r);
   if (r.imu_gap_s > 0.0) {
     ++summary_.imu_gaps_bridged;
@@ -220,7 +221,7 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " core_stalls=" << s.core_stalls << " scans_unusual=" << s.scans_unusual
     << " points_bad_time=" << s.points_bad_time << " imu_conflicts=" << s.imu_conflicts
     << " imu_conflicts_unresolved=" << s.imu_conflicts_unresolved << " imu_gaps=" << s.imu_gaps
-    << " imu_gap_warn_max_s=" << s.imu_gap_warn_max_s
+    << " imu_gap_warn_max_s=" << s.imu_gap_warn_max_s << " lidar_overruled=" << s.lidar_overruled
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

@@ -35,6 +35,9 @@ struct NodeSummary {
   // Points the core dropped for a time outside the plausible sweep window (ScanResult::
   // points_bad_time); a scan left with too few is rejected with the reason.
   uint64_t points_bad_time = 0;
+  // Scans whose IMU prediction the map contradicted and the LiDAR moved (ScanResult::overruled:
+  // a jolt, a saturated gyro, a gap the IMU bridged wrongly); each also logs one WARN.
+  uint64_t lidar_overruled = 0;
   uint64_t imu_duplicate = 0;     // same stamp and values as the sample before it: dropped
   // Stamps that came with different values (ScanResult::imu_conflicts): the core kept the copy
   // consistent with the samples on either side, or, unresolved, neither.

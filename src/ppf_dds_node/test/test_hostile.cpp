@@ -89,7 +89,7 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
                                 "qos: {sensor_reliability: reliable, sensor_depth: 200}\n"
                                 "queues: {scan_capacity: 100}\n"
                                 "diagnostics: {malformed_log_interval_s: 0.05, period_s: 0.25}\n",
-                                {"--hostile", "28"}, &run));
+                                {"--hostile", "28", "--imu-gap", "1.8", "0.4"}, &run));
   const std::string& s = run.summary;
   const std::string& log = run.log;
 
@@ -221,6 +221,13 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   // One line naming the count (the sequence itself has no non-finite points).
   EXPECT_EQ(CountLinesWith(log, ": " + std::to_string(static_cast<int>(nonfinite)) + " of "), 1);
   EXPECT_EQ(CountLinesWith(log, "points non-finite (NaN/Inf), dropped"), 1);
+
+  // The IMU silent for 0.4 s at rest, after initialization (before: no line, no counter): one
+  // gap over the core's imu.max_gap_warn (0.1 s), named once and counted, no reset.
+  EXPECT_NEAR(SummaryField(run.result, "skipped_imu"), 80, 2);  // 0.4 s of 200 Hz
+  EXPECT_EQ(SummaryField(s, "imu_gaps"), 1);
+  EXPECT_NEAR(SummaryField(s, "imu_gap_warn_max_s"), 0.405, 0.01);
+  EXPECT_EQ(CountLinesWith(log, "> imu.max_gap_warn"), 1);
 
   // Imu defects: NaN, 1e5 m/s^2, all zeros refused in the listener; a duplicate, a swapped pair,
   // one sample 10 s back and one 1000 s ahead dropped by the executor without a reset.

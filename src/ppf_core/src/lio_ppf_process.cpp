@@ -263,10 +263,14 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
   state.P.block<3, 3>(kPos, kPos) = P_pos;
   // The chord is the mean velocity over the gap, not the velocity at its end: what an unmeasured
   // acceleration makes of it over the gap (as for a bridged gap, WidenForGap) is unknown too.
+  // Horizontally only: a vertical velocity error is what a tilt makes of gravity, and the
+  // update would explain one by the other.
   const double v_gap = config.gap_acc_std * imu_loss_gap_s;
+  const Eigen::Vector3d up = state.gravity_world.norm() > 1e-6 ? state.gravity_world.normalized()
+                                                               : Eigen::Vector3d::UnitZ();
   state.P.block<3, 3>(kVel, kVel) =
-      2.0 * P_pos / (dt * dt) +
-      (v_spread.squaredNorm() + v_gap * v_gap) * Eigen::Matrix3d::Identity();
+      2.0 * P_pos / (dt * dt) + v_spread.squaredNorm() * Eigen::Matrix3d::Identity() +
+      v_gap * v_gap * (Eigen::Matrix3d::Identity() - up * up.transpose());
   // Samples from before the gap would be interpolated across it.
   while (!imu.empty() && imu.front().stamp_s < imu_back_stamp_s) imu.pop_front();
   imu_lost = false;
@@ -333,6 +337,10 @@ IekfReport LioPpf::Impl::Register(double t_end, bool lidar, Eigen::Isometry3d* T
 // gated too narrowly, to move the state by what the IMU got wrong without knowing; the coarse
 // alignment has neither limit, and the covariance is widened only along the correction it found,
 // so a heading correction leaves roll and pitch with the IMU.
+namespace {
+constexpr double kTrustTiltRad = 1.0 * M_PI / 180.0;
+}  // namespace
+
 IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
                                                 const IekfOptions& iekf,
                                                 const std::vector<ResidualProvider*>& providers,
@@ -427,10 +435,16 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
 
   // The prediction moved to the aligned pose, its velocity turned with it, and the covariance
   // widened by each correction along its own direction.
+  // Roll and pitch stay the IMU's unless the aligned pose differs there by more than a scan's
+  // own tilt can be off (kTrustTiltRad): the rows' shared errors tilt a LiDAR-only pose by a
+  // fraction of a degree (iekf.hpp), which the filter must not adopt from one scan.
   NavState anchored = predicted;
   const Eigen::Isometry3d T_anchor = c.T_world_lidar * T_il.inverse();
-  const Eigen::Matrix3d dR = T_anchor.linear() * predicted.R_world_imu.transpose();
-  anchored.R_world_imu = NormalizeRotation(T_anchor.linear());
+  const Eigen::Vector3d d_world = SO3Log(T_anchor.linear() * predicted.R_world_imu.transpose());
+  const Eigen::Vector3d d_yaw = d_world.dot(up) * up;
+  const bool tilt_too = (d_world - d_yaw).norm() > kTrustTiltRad;
+  const Eigen::Matrix3d dR = SO3Exp(tilt_too ? d_world : d_yaw);
+  anchored.R_world_imu = NormalizeRotation(dR * predicted.R_world_imu);
   anchored.p_world_imu = T_anchor.translation();
   anchored.v_world = dR * predicted.v_world;
   const Eigen::Vector3d d_rot = SO3Log(predicted.R_world_imu.transpose() * anchored.R_world_imu);

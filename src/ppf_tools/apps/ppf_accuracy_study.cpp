@@ -224,7 +224,7 @@ int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after,
       std::cout << std::fixed << std::setprecision(3) << "heading " << rec.heading_at_settle_deg
                 << " deg (max " << rec.max_heading_deg << "), position " << rec.position_at_settle_m
                 << " m (max " << rec.max_position_m << "), tilt max " << rec.max_tilt_deg
-                << " deg, overruled " << r.run.summary.overruled << " scans\n";
+                << " deg (" << rec.max_tilt_settled_deg << " after), overruled " << r.run.summary.overruled << " scans\n";
     }
   }
   std::cout << "\n";

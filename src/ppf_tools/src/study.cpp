@@ -371,8 +371,10 @@ Recovery ComputeRecovery(const Trajectory& gt, const Trajectory& est, double t_s
   };
   for (const auto& [i, j] : pairs) {
     if (gt[i].stamp_s < t_abs) continue;
-    rec.max_tilt_deg = std::max(rec.max_tilt_deg, TiltDeg(gt[i].T, est[j].T));
+    const double tilt = TiltDeg(gt[i].T, est[j].T);
+    rec.max_tilt_deg = std::max(rec.max_tilt_deg, tilt);
     if (gt[i].stamp_s < t_abs + settle_s) continue;
+    rec.max_tilt_settled_deg = std::max(rec.max_tilt_settled_deg, tilt);
     double dh = heading(R * est[j].T.linear()) - heading(gt[i].T.linear());
     dh = std::abs(std::remainder(dh, 2.0 * M_PI)) * 180.0 / M_PI;
     const double dp = (R * est[j].T.translation() + t - gt[i].T.translation()).norm();

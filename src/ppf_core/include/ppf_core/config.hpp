@@ -110,7 +110,7 @@ struct ConsistencyOptions {
   // no prior) would still move the posterior farther than this. The narrow gates hide a step of
   // the position along the way from the fit: most points lie on surfaces parallel to it.
   double max_step_pos = 0.1;       // m
-  double max_step_rot_deg = 0.5;   // degrees
+  double max_step_rot_deg = 1.0;   // degrees
   // A re-anchored posterior is taken when it fits at least this much better (share of the sample
   // points), or no worse while the scan alone no longer moves it past the bounds above.
   double min_gain = 0.1;

@@ -118,6 +118,7 @@ struct Recovery {
   double max_heading_deg = 0;        // all of them
   double max_position_m = 0;
   double max_tilt_deg = 0;           // from t_s on
+  double max_tilt_settled_deg = 0;   // from t_s + settle_s on
 };
 Recovery ComputeRecovery(const Trajectory& gt, const Trajectory& est, double t_s, double settle_s);
 

@@ -78,7 +78,8 @@ class Faults : public ::testing::Test {
     mkdir(dir.c_str(), 0755);
     std::ofstream cfg(dir + "/node.yaml");
     // UDP only: over shared memory a SIGKILLed participant can leave the survivors deaf to the
-    // one restarted in its place (Fast DDS 2.9; docs/reliability.md, "Crash and restart").
+    // one restarted in its place (Fast DDS 2.9; docs/reliability.md, "Crash and restart (shared
+    // memory)").
     cfg << "dds: {domain_id: " << domain << ", profiles_file: \"" << kProfiles
         << "\", profile_name: " << kProfileUdp << "}\n"
         << "core: {config_file: \"" << PPF_CONFIG_DIR << "/vlp16.yaml\"}\n"

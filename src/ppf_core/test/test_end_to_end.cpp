@@ -322,8 +322,8 @@ TEST(EndToEnd, OusterStyleTimeImuInGStampAtEnd) {
 
 // Both streams silent for 2 s while the robot moves (a network link down between driver and
 // node): the gap is bridged and the trajectory keeps the accuracy bound on both sides of it.
-// Before, any IMU gap over max_imu_gap (0.5 s) reset the filter, whose static initialization a
-// moving robot never gives again: no pose after the gap at all (GapLongerThanTheBridgeResets).
+// A reset instead would need a static initialization a moving robot never gives again: no pose
+// after the gap at all (a gap beyond the bridge: GapLongerThanTheBridgeReanchorsWithoutReset).
 TEST(EndToEnd, TwoSecondGapWhileMovingIsBridged) {
   RunOptions o;
   o.duration = 14.0;  // as many poses as the runs without a gap
@@ -345,8 +345,8 @@ TEST(EndToEnd, TwoSecondGapWhileMovingIsBridged) {
   CheckAccuracy(run, "2 s gap while moving, bridged", "gap2s");
 }
 
-// Beyond max_imu_gap_bridge the filter used to reset (and a moving robot waited for the moving
-// start). Now the first scan after such a gap is registered LiDAR-only (the filter's motion
+// Beyond max_imu_gap_bridge the filter is not reset (a moving robot would wait for the moving
+// start): the first scan after such a gap is registered LiDAR-only (the filter's motion
 // continued by the constant-velocity model, several guesses) and LIO re-anchors there: no reset,
 // a pose for every scan after the gap, the accuracy bound kept.
 TEST(EndToEnd, GapLongerThanTheBridgeReanchorsWithoutReset) {

@@ -55,10 +55,9 @@ std::unique_ptr<LioPpf> CoreExecutor::CreateCore(const NodeConfig& c, std::strin
   if (c.core_mode == "knn") core_config.mode = Mode::kKnn;
   if (c.core_mode == "ppf") core_config.mode = Mode::kPpf;
   core_config.output_deskewed_points = c.publish_registered_points;
-  // imu.mode as in the core (lio_ppf.hpp): auto holds the first scans for imu.auto_wait and runs
-  // LiDAR-only if no IMU sample came meanwhile; an IMU driver that starts later then takes over
-  // without a reset or a jump, in that LiDAR-only world. lio waits for the IMU (a gravity-aligned
-  // world); none ignores it.
+  // Everything else, imu.mode among it, comes from the core config files read above and is
+  // applied by the core itself (lio_ppf.hpp); the node overrides only the mode and the output of
+  // de-skewed points, and routes the core's log lines into its own log below.
   core_config.log = [](LogLevel level, const std::string& msg) {
     const Level l = level == LogLevel::kError  ? Level::kError
                     : level == LogLevel::kWarn ? Level::kWarn
@@ -298,8 +297,8 @@ void CoreExecutor::RunCore(bool flush) {
   }
 }
 
-// A result that belongs to no scan: the core reset itself (IMU time went back, or a gap too long
-// to bridge).
+// A result that belongs to no scan: the core reset itself (IMU time went back). An IMU gap too
+// long to bridge gives no reset: the core registers the scans LiDAR-only and LIO re-anchors.
 void CoreExecutor::ReportNotice(const ScanResult& r) {
   stats_.CountNotice(r);
   if (r.status == Status::kReset) {

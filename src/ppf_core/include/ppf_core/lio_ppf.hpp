@@ -156,8 +156,8 @@ struct StageTimings {
 
 struct ScanResult {
   // What LioPpf::AddScan returned for the scan this result belongs to. 0 for a notice that
-  // belongs to no scan: a kReset the IMU stream caused (time going back, a gap too long to
-  // bridge), reported before the next scan's result.
+  // belongs to no scan: a kReset the IMU stream caused (its time going back), reported before
+  // the next scan's result. A gap too long to bridge resets nothing (see the class comment).
   uint64_t input_id = 0;
   double stamp_s = 0.0;        // time of the pose: the scan end
   double scan_begin_s = 0.0;   // earliest point time
@@ -183,8 +183,8 @@ struct ScanResult {
   // The first LIO scan after an IMU loss (the reason says "LIO resumed"; imu_gap_s is the gap).
   bool lio_resumed = false;
   // Registered without an IMU because none has come (imu.mode none, or auto that decided none),
-  // including the window in which IMU samples that arrived late are judged (LateImuStart in
-  // lio_ppf.hpp's class comment). Not set for an IMU loss (imu_lost) or a moving start.
+  // including the window in which IMU samples that arrived late are judged (the "Late IMU"
+  // paragraph of LioPpf's class comment). Not set for an IMU loss (imu_lost) or a moving start.
   bool lidar_only = false;
   // The scan with which the LiDAR-only start became LiDAR-inertial (late IMU): from it on the
   // IMU predicts, in the same world as before (no jump; its z is not "up", gravity_map says

@@ -1,9 +1,9 @@
 // ppf_accuracy_study: APE of the pipeline on simulated sequences with every simulated LiDAR,
-// against the accuracy bounds of issue 4 (0.5 % of the path length for urban, indoor and ramps,
-// 1 % for park, and at most 5 cm for hand-held motion) and the gravity bounds of issue 11
-// (position+yaw APE at most 1.5x the SE(3) APE + 5 cm, tilt within 0.2 degrees after 10 s). A
-// study reports; the test suite (test_accuracy) asserts the same kind of bounds on shorter
-// sequences.
+// against the accuracy bounds (0.5 % of the path length for urban, indoor and ramps, 1 % for
+// park, and at most 5 cm for hand-held motion) and the gravity bounds (position+yaw APE at most
+// 1.5x the SE(3) APE + 5 cm, tilt within 0.2 degrees after 10 s); where they come from:
+// docs/decisions.md, "Accuracy and gravity bounds". A study reports; the test suite
+// (test_accuracy) asserts the same kind of bounds on shorter sequences.
 //
 //   ppf_accuracy_study                       # 60 s: urban and indoor x 5 LiDARs, park HDL-32
 //   ppf_accuracy_study --modes knn,ppf       # both modes
@@ -46,8 +46,8 @@ std::string Usage() {
              "of the path), RPE, APE RMSE aligned by position + yaw only, the tilt between the\n"
              "estimated and the true gravity (median, max; degrees, from --tilt-after on), the\n"
              "final height error (first pose matched by translation + yaw; m and % of the path),\n"
-             "the bound of issue 4 that applies (urban/indoor/ramps 0.5 % of the path, park 1 %,\n"
-             "hand-held motion also 5 cm) and whether it was met. Then, per run, issue 11's\n"
+             "the accuracy bound that applies (urban/indoor/ramps 0.5 % of the path, park 1 %,\n"
+             "hand-held motion also 5 cm) and whether it was met. Then, per run, the\n"
              "gravity bounds: position+yaw APE <= 1.5 x SE(3) APE + 5 cm, max tilt <= 0.2 deg.\n"
              "Exit code 0 whether or not the bounds are met; 1 if a run could not be made.\n\n") +
          ppf::tools::StudyOptionsHelp(kDefaultSequences) +
@@ -156,7 +156,7 @@ std::vector<Row> RunStudy(const ppf::tools::StudyOptions& opts,
   return rows;
 }
 
-// The table, then issue 11's gravity lines and the verdict. Returns the number of failed runs.
+// The table, then the gravity bound lines and the verdict. Returns the number of failed runs.
 int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after,
                const DisturbOptions& disturb) {
   std::cout << "\nAPE against the issues' bounds, " << duration
@@ -208,7 +208,7 @@ int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after,
     gravity_lines << ppf::tools::DescribeGravityBounds(gravity_bound, r.name + " " + r.mode, r.run,
                                                        &all_met);
   }
-  std::cout << "\ngravity bounds (issue 11):\n" << gravity_lines.str();
+  std::cout << "\ngravity bounds:\n" << gravity_lines.str();
   if (disturb.at_s >= 0.0) {
     std::cout << "\nrecovery from the disturbance at " << disturb.at_s << " s (" << disturb.sim_args
               << "), " << disturb.settle_s << " s later and after (aligned on the poses before):\n";

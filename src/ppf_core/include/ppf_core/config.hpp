@@ -166,12 +166,13 @@ struct IekfOptions {
   // scan's de-skew error, so a few thousand rows carry far less information than a few thousand
   // independent ones. Counted as independent at the range noise, they made the LiDAR so sure of
   // roll and pitch that each scan overruled the gyro and the accelerometer, and whatever error
-  // the rows shared tilted the world away from gravity (issue 11, worst in fast hand-held PPF
-  // runs); counted at this level the IMU keeps the tilt, and position is still the LiDAR's.
+  // the rows shared tilted the world away from gravity (docs/decisions.md, "Row noise and
+  // gravity"); counted at this level the IMU keeps the tilt, and position is still the LiDAR's.
   double laser_point_std = 0.3;
   // Radians: the part of a row's noise that grows with the point's range. A far point is matched
   // to a plane fitted from neighbours as far apart as the beams are there, so its row's error
-  // grows with range and, through its lever arm, turns the map about a horizontal axis (issue 11).
+  // grows with range and, through its lever arm, turns the map about a horizontal axis
+  // (docs/decisions.md, "Row noise and gravity").
   // Row variance = laser_point_std^2 + (laser_angular_std * range)^2; 0 = range-independent.
   // Scaled with laser_point_std (same ratio), so near and far rows keep their relative weights.
   double laser_angular_std = 0.05;
@@ -194,7 +195,8 @@ struct IekfOptions {
   double degeneracy_min_eig_rotation = 300.0;  // J^T J eigenvalue (points * m^2)
   // Metres from the LiDAR beyond which points give no residual (0 = no limit); they are still
   // mapped. Far rows fit planes to sparse, grazing returns and their errors act through long
-  // lever arms: on the simulated drives they tilted the map away from gravity (issue 11's note).
+  // lever arms: on the simulated drives they tilted the map away from gravity (docs/decisions.md,
+  // "Row noise and gravity").
   double residual_max_range = 0.0;
 };
 
@@ -259,8 +261,9 @@ struct Config {
   // hypothesis_search.hpp), keeping map, gravity and biases; LIO resumes, re-anchored, when IMU
   // samples are back. Scans closer to the last sample are propagated with it held (extrapolated):
   // a held acceleration and turn rate are only right for a moment, and on the simulated drives
-  // the LiDAR-only registration was the more accurate from a quarter second on (the report of
-  // issue 16 has the comparison). Shorter values gain nothing: the scan interval is 0.1 s.
+  // the LiDAR-only registration was the more accurate from a quarter second on
+  // (docs/decisions.md, "IMU loss timeout"). Shorter values gain nothing: the scan interval is
+  // 0.1 s.
   double imu_loss_timeout_s = 0.25;
   // The fine update's prior about the coarse pose for those scans (as lidar_only.prior_*_std).
   // Looser than LiDAR-only's own: the map the fallback registers against was built with the

@@ -36,7 +36,7 @@ TEST(Convert, CloudWithUnknownDatatypeIsRejected) {
   EXPECT_NE(error.find("'z'"), std::string::npos) << error;
 }
 
-// Layouts a reader cannot trust, each refused with the reason (issue 12, hostile inputs).
+// Layouts a reader cannot trust, each refused with the reason (hostile inputs).
 TEST(Convert, InconsistentCloudLayoutsAreRejectedWithTheReason) {
   auto expect_rejected = [](const sensor_msgs::msg::PointCloud2& c, const std::string& reason) {
     std::string error;

@@ -1,7 +1,7 @@
 // The tools run exactly as the READMEs show them: no transport profile in the environment, no
-// --profiles, only --domain so that parallel test runs stay apart. Issue 12 found that a user
-// doing so lost most HDL-32 clouds between ppf_replay (then on Fast DDS's defaults) and ppf_node;
-// and that a core preset passed as the node config started a node on defaults.
+// --profiles, only --domain so that parallel test runs stay apart. A user doing so can lose most
+// HDL-32 clouds between ppf_replay and ppf_node when the replay falls back to Fast DDS's
+// defaults, and a core preset passed as the node config must not start a node on defaults.
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>

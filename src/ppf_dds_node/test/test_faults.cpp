@@ -1,4 +1,4 @@
-// Faults while the pipeline runs (issue 12): the replay killed with SIGKILL and started again, the
+// Faults while the pipeline runs: the replay killed with SIGKILL and started again, the
 // node crashing (SIGKILL) and restarted while the replay goes on, recorders started before and
 // after the node. Each time the survivors go on, the node says what happened, odometry flows
 // again and the recorded bags hold what was published. (The IMU falling silent mid-run is in

@@ -1,9 +1,10 @@
-// Hostile inputs through DDS from an independent peer (issues 12 and 28): the Cyclone DDS program
+// Hostile inputs through DDS from an independent peer: the Cyclone DDS program
 // (cyclone/cyclone_peer.c, --hostile) replays a simulated sequence into ppf_node and, once the
-// node is initialized, injects one defect per scan: every PointCloud2 and Imu defect the issues
-// list. Per defect the node must refuse (or, for a valid but unusual cloud, process) it, say so
-// in a clear rate-limited log line, count it in its summary, stay alive and publish odometry for
-// the next valid scan; the peer checks that odometry arrived for the scan after each defect.
+// node is initialized, injects one defect per scan: every PointCloud2 and Imu defect of
+// docs/reliability.md's table. Per defect the node must refuse (or, for a valid but unusual
+// cloud, process) it, say so in a clear rate-limited log line, count it in its summary, stay
+// alive and publish odometry for the next valid scan; the peer checks that odometry arrived for
+// the scan after each defect.
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
@@ -355,7 +356,7 @@ TEST(Hostile, ImuDropoutOfTwoSecondsIsBridgedWithoutResetOrJump) {
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }
 
-// The IMU falls silent for 3 s while the robot drives on at 10 m/s (issue 16: a driver crash).
+// The IMU falls silent for 3 s while the robot drives on at 10 m/s (a driver crash).
 // The core continues LiDAR-only over the dropout and resumes LIO when the IMU is back; the node
 // says both, counts the fallback and publishes odometry for every scan, with no reset and no
 // step of the pose more than 0.2 m off the true one.

@@ -386,10 +386,10 @@ sensor_msgs::msg::PointCloud2 TiledCloud(const sensor_msgs::msg::PointCloud2& sc
   return out;
 }
 
-// Issue 12's "several million points" as a real cloud over DDS: 5M points (80 MB) from a Fast DDS
-// writer on the test profile (shared memory, reliable) into a running node. Above
-// queues.max_cloud_points (default 4M) it is refused by size and counted, the node keeps
-// publishing odometry for the following scans, and its memory comes back down.
+// A cloud of several million points over DDS: 5M points (80 MB) from a Fast DDS writer on the
+// test profile (shared memory, reliable) into a running node. Above queues.max_cloud_points
+// (default 4M) it is refused by size and counted, the node keeps publishing odometry for the
+// following scans, and its memory comes back down.
 TEST(NodeProcess, FiveMillionPointCloudIsRefusedBySizeAndOdometryGoesOnWithMemoryBounded) {
   NodeRig rig(14);
   const std::string& log = rig.log;

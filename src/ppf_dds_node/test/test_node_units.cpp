@@ -26,7 +26,7 @@
 namespace ppf::dds {
 namespace {
 
-// IMU loss (issue 16): an episode of LiDAR-only scans counts once, each scan in it too, and the
+// IMU loss: an episode of LiDAR-only scans counts once, each scan in it too, and the
 // status line says so while it lasts.
 TEST(NodeStats, ImuFallbackEpisodesAreCountedAndShownInTheStatusLine) {
   NodeStats stats;

@@ -198,7 +198,7 @@ TEST(ReplayRecordOptions, TopicFilterStartAndRate) {
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }
 
-// Issue 15: a ROS 1 bag (Debian's rosbag, through ppf_bag's test writer) replays as ROS 2
+// A ROS 1 bag (Debian's rosbag, through ppf_bag's test writer) replays as ROS 2
 // messages: the PointCloud2, Imu and Livox CustomMsg topics go out exactly as ppf_bag presents
 // them (converted to CDR; the Livox clouds as PointCloud2), and a type without a ROS 2 form
 // (std_msgs/String in ROS 1 serialization) is skipped with a warning.
@@ -293,9 +293,9 @@ TEST(ReplayRecordOptions, LoopUntilInterruptedAndExplicitTypes) {
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }
 
-// Issue 12: ppf_record held its own lock while creating readers, and Fast DDS calls the
-// recorder's discovery callback (which takes that lock) with its discovery lock held, the lock
-// reader creation needs: a writer discovered while readers were being created deadlocked the
+// ppf_record must not hold its own lock while creating readers: Fast DDS calls the recorder's
+// discovery callback (which takes that lock) with its discovery lock held, the lock reader
+// creation needs, so a writer discovered while readers were being created would deadlock the
 // recorder (nothing recorded, SIGINT ignored). Here the recorder joins a participant with many
 // writers (one batch of readers to create) while this process keeps creating new writers, so
 // discovery callbacks arrive throughout that batch; every round must record every message and

@@ -207,7 +207,7 @@ TEST(EndToEnd, GravityComesRightDespiteAccelerometerBias) {
   EXPECT_LT((last.acc_bias - o.acc_bias).head<2>().norm(), 0.05);  // 0.1 at initialization
 }
 
-// No IMU at all (issue 16): the constant-velocity model predicts and de-skews, the first scan
+// No IMU at all: the constant-velocity model predicts and de-skews, the first scan
 // builds the map, the world is the first scan's LiDAR frame (not gravity-aligned, hence only the
 // SE(3)-aligned APE). Bound: 1 % of the path. Both registration modes.
 TEST(EndToEnd, LidarOnlyWithoutImu) {

@@ -1,5 +1,5 @@
-// LiDAR-only building blocks (issue 16): the constant-velocity model and the coarse alignment from
-// several guesses. The facade's LiDAR-only runs are in test_end_to_end (synthetic room) and
+// LiDAR-only building blocks: the constant-velocity model and the coarse alignment from several
+// guesses. The facade's LiDAR-only runs are in test_end_to_end (synthetic room) and
 // ppf_tools' test_lidar_only_real / test_accuracy.
 #include <gtest/gtest.h>
 

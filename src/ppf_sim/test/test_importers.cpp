@@ -210,7 +210,7 @@ TEST(PcdImport, RealPandar64Scans) {
   fs::remove(csv);
 }
 
-// Sweeps without any time (already motion-compensated keyframes, issue 16): the times come from a
+// Sweeps without any time (already motion-compensated keyframes): the times come from a
 // TUM file's first column (its comment line skipped) or from --rate; with neither, a clear error.
 TEST(PcdImport, StampsFromTumFileOrRate) {
   const fs::path dir = TempDir("pcd_untimed");

@@ -26,10 +26,10 @@ struct Case {
   ppf::Mode mode;
   double max_ape_percent;  // of path length; <= 0: use max_ape_m
   double max_ape_m;
-  // > 0: issue 11's gravity bounds, from this many seconds after the first pose on (once a turn
+  // > 0: the gravity bounds, from this many seconds after the first pose on (once a turn
   // has made the accelerometer bias observable: at rest it cannot be told from tilt).
   double gravity_after_s = 0.0;
-  // imu.mode none: LiDAR-only on the same bag, its IMU ignored (issue 16).
+  // imu.mode none: LiDAR-only on the same bag, its IMU ignored.
   bool lidar_only = false;
   int redeskew_iterations = 0;  // lidar_only.redeskew_iterations (2: the hand-held setting)
 };
@@ -78,8 +78,8 @@ TEST_P(Accuracy, ApeWithinBound) {
   EXPECT_GE(ape.matched + 15, run.results.size());
   const double path = ppf::PathLength(gt);
   const double percent = 100.0 * ape.stats.rmse / std::max(path, 1e-9);
-  // Issue 11's view of the same run: position+yaw alignment (a tilted world shows as error) and
-  // the tilt of the estimated gravity.
+  // The gravity bounds' view of the same run: position+yaw alignment (a tilted world shows as
+  // error) and the tilt of the estimated gravity.
   eval.align = ppf::Alignment::kPosYaw;
   eval.tilt_after_s = c.gravity_after_s > 0 ? c.gravity_after_s : 2.0;
   const auto ape_posyaw = ppf::ComputeApe(gt, run.trajectory, eval);
@@ -100,7 +100,7 @@ TEST_P(Accuracy, ApeWithinBound) {
     EXPECT_LE(ape.stats.rmse, c.max_ape_m);
   }
   if (c.gravity_after_s > 0) {
-    // The bounds of issue 11 (ppf_accuracy_study applies the same to its 60 s sequences).
+    // The gravity bounds (ppf_accuracy_study applies the same to its 60 s sequences).
     const ppf::tools::GravityBound bound;
     EXPECT_LE(ape_posyaw.stats.rmse, bound.max_posyaw_ratio * ape.stats.rmse + bound.posyaw_slack_m)
         << "the world is tilted: position+yaw-aligned APE far above the SE(3)-aligned one";
@@ -109,7 +109,7 @@ TEST_P(Accuracy, ApeWithinBound) {
   }
 }
 
-// Issue 11's bounds as the study applies them, on hand-made runs.
+// The gravity bounds as the study applies them, on hand-made runs.
 TEST(GravityBound, PosYawAndTiltLimits) {
   ppf::tools::ModeRun run;
   run.ape.ok = run.ape_posyaw.ok = run.gravity.ok = true;
@@ -161,8 +161,8 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         Case{"urban_hdl32_knn", "--scene urban --lidar hdl32", "hdl32", 12, kKnn, 0.5, 0},
         Case{"urban_hdl32_ppf", "--scene urban --lidar hdl32", "hdl32", 12, kPpf, 0.5, 0},
-        // LiDAR-only on the same 12 s drive (no extra sequence): 1 % of the path (issue 16);
-        // measured 0.02 % (20 s: APE 0.020 m knn, 0.018 m ppf over 97.5 m).
+        // LiDAR-only on the same 12 s drive (no extra sequence): 1 % of the path
+        // (docs/decisions.md, "Accuracy test cases").
         Case{"urban_hdl32_lidar_only_knn", "--scene urban --lidar hdl32", "hdl32", 12, kKnn, 1.0, 0,
              0.0, true},
         Case{"urban_hdl32_lidar_only_ppf", "--scene urban --lidar hdl32", "hdl32", 12, kPpf, 1.0, 0,
@@ -170,7 +170,8 @@ INSTANTIATE_TEST_SUITE_P(
         Case{"urban_hdl64_knn", "--scene urban --lidar hdl64", "hdl64", 8, kKnn, 0.5, 0},
         Case{"urban_hdl64_ppf", "--scene urban --lidar hdl64", "hdl64", 8, kPpf, 0.5, 0},
         Case{"urban_vlp16_knn", "--scene urban --lidar vlp16", "vlp16", 12, kKnn, 0.5, 0},
-        // Through the first turn (14-17 s), where the world used to tilt by 1.2 degrees.
+        // Through the first turn (14-17 s), where the world can tilt (docs/decisions.md,
+        // "Accuracy test cases").
         Case{"urban_vlp16_turn_knn", "--scene urban --lidar vlp16", "vlp16", 24, kKnn, 0.5, 0, 17},
         Case{"urban_vlp16_turn_ppf", "--scene urban --lidar vlp16", "vlp16", 24, kPpf, 0.5, 0, 17},
         Case{"urban_os1_64_ppf", "--scene urban --lidar os1_64", "os1_64", 8, kPpf, 0.5, 0},
@@ -178,7 +179,7 @@ INSTANTIATE_TEST_SUITE_P(
              12, kKnn, 0.5, 0},
         Case{"indoor_vlp16_ppf", "--scene indoor --lidar vlp16 --motion car --speed 1.5", "vlp16",
              12, kPpf, 0.5, 0},
-        // LiDAR-only on the indoor car drive (issue 16, 1 % of the path).
+        // LiDAR-only on the indoor car drive (1 % of the path).
         Case{"indoor_vlp16_lidar_only_knn", "--scene indoor --lidar vlp16 --motion car --speed 1.5",
              "vlp16", 12, kKnn, 1.0, 0, 0.0, true},
         Case{"indoor_vlp16_lidar_only_ppf", "--scene indoor --lidar vlp16 --motion car --speed 1.5",
@@ -188,17 +189,16 @@ INSTANTIATE_TEST_SUITE_P(
         Case{"park_hdl32_knn", "--scene park --lidar hdl32", "hdl32", 12, kKnn, 1.0, 0},
         Case{"park_hdl32_ppf", "--scene park --lidar hdl32", "hdl32", 12, kPpf, 1.0, 0},
         Case{"ramps_hdl32_ppf", "--scene ramps --lidar hdl32", "hdl32", 12, kPpf, 0.5, 0},
-        // Hand-held shake (up to 150 deg/s) turns the accelerometer bias early: issue 11's bounds
-        // from 10 s on, as the issue states them. Both runs tilted beyond 0.2 deg while the rows
-        // of a scan were counted as independent (iekf.hpp, laser_point_std).
+        // Hand-held shake (up to 150 deg/s) turns the accelerometer bias early: the gravity
+        // bounds from 10 s on, as the study states them. Rows of a scan counted as independent
+        // tilt these runs beyond 0.2 deg (docs/decisions.md, "Row noise and gravity").
         Case{"handheld_indoor_vlp16_knn", "--scene indoor --lidar vlp16 --motion handheld", "vlp16",
              20, kKnn, 0, 0.05, 10},
         Case{"handheld_indoor_vlp16_ppf", "--scene indoor --lidar vlp16 --motion handheld", "vlp16",
              20, kPpf, 0, 0.05, 10},
-        // LiDAR-only on the same hand-held walk (issue 16, 1 % of the path), with the hand-held
-        // setting lidar_only.redeskew_iterations 2. De-skewed with the constant-velocity model
-        // alone (the default, 0) it misses: APE 0.217 m knn, 0.211 m ppf over 20.8 m;
-        // re-deskewed 0.070 m and 0.053 m.
+        // LiDAR-only on the same hand-held walk (1 % of the path), with the hand-held setting
+        // lidar_only.redeskew_iterations 2: de-skewed with the constant-velocity model alone
+        // (the default, 0) it misses the bound (docs/decisions.md, "Accuracy test cases").
         Case{"handheld_indoor_vlp16_lidar_only_knn",
              "--scene indoor --lidar vlp16 --motion handheld", "vlp16", 20, kKnn, 1.0, 0, 0.0, true,
              2},

@@ -1,9 +1,8 @@
-// The local map's memory stays bounded on a long drive (issue 4). The full figure is a 10-minute
-// drive (ppf_endurance, recorded in the issue notes); CI runs a shorter drive with a smaller map
-// radius so that the drive still leaves the bound many times. Measured on this drive (kNN):
-// without the bound (map.radius 0) the map grows with every new street, +103 % from the first
-// half's maximum to the second's and VmRSS +13 MB over the second half; with the 75 m bound the
-// map follows the sensor, +7.2 % (PPF +4.8 %: the density of the streets varies) and +0.2 MB.
+// The local map's memory stays bounded on a long drive. The full figure is a 10-minute drive
+// (ppf_endurance); CI runs a shorter drive with a smaller map radius so that the drive still
+// leaves the bound many times. Without the bound (map.radius 0) the map grows with every new
+// street; with it the map follows the sensor, up to the streets' varying density (the figures:
+// docs/decisions.md, "Map radius on a long drive").
 #include <gtest/gtest.h>
 
 #include <iostream>

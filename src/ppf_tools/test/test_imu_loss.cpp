@@ -1,4 +1,4 @@
-// IMU loss mid-run (issue 16): a simulated drive whose IMU samples stop for 3 s in its middle
+// IMU loss mid-run: a simulated drive whose IMU samples stop for 3 s in its middle
 // (dropped in-process by the offline loop, OfflineOptions::imu_gap_*) while the scans go on. The
 // core must continue LiDAR-only over the dropout and return to LIO when the IMU is back: no
 // reset, no jump in the pose, and an APE within that of the same drive without the dropout plus
@@ -171,9 +171,9 @@ TEST_P(ImuLoss, ThreeSecondDropoutContinuesLidarOnlyAndResumes) {
       << "APE with the dropout above 1.5x the APE without";
 }
 
-// A node starved of CPU drops scans while its IMU is lost (issue 16: such a node jumped 7.37 m):
-// half the scans of the dropout never reach the core, so the constant-velocity model spans two
-// scan intervals. No jump, and LIO resumes.
+// A node starved of CPU drops scans while its IMU is lost (docs/decisions.md, "IMU loss in a
+// starved node"): half the scans of the dropout never reach the core, so the constant-velocity
+// model spans two scan intervals. No jump, and LIO resumes.
 TEST_P(ImuLoss, ThreeSecondDropoutWithHalfTheScansDropped) {
   const Case& c = GetParam();
   const double kDuration = 14.0, kGapBegin = 6.0, kGapLength = 3.0;
@@ -197,9 +197,9 @@ TEST_P(ImuLoss, ThreeSecondDropoutWithHalfTheScansDropped) {
 
 // A node whose core is behind feeds every queued IMU sample before the next scan, so the IMU
 // runs seconds ahead of the scans waiting, and the samples after a dropout can reach the core
-// before the dropout's scans (issue 16: a starved node jumped 7.37 m). Lead 1 s: the dropout is
-// declared by the scans, the IMU is back while some of them still wait; 4 s: the IMU after the
-// dropout arrives before any scan of it. No reset, no jump, and LIO resumes once.
+// before the dropout's scans (docs/decisions.md, "IMU loss in a starved node"). Lead 1 s: the
+// dropout is declared by the scans, the IMU is back while some of them still wait; 4 s: the IMU
+// after the dropout arrives before any scan of it. No reset, no jump, and LIO resumes once.
 TEST_P(ImuLoss, ThreeSecondDropoutWithTheImuSecondsAheadOfTheScans) {
   const Case& c = GetParam();
   const double kDuration = 14.0, kGapBegin = 6.0, kGapLength = 3.0;

@@ -1,10 +1,10 @@
-// LiDAR-only odometry (issue 16) on a real sequence without IMU: balm_realworld_lidar, 177
+// LiDAR-only odometry on a real sequence without IMU: balm_realworld_lidar, 177
 // hand-held 2 Hz keyframe sweeps with the producer's own odometry as reference (README of the
 // data). Read in place from <workspace>/../shared (PPF_SHARED_DIR at build time, or the
 // environment variable PPF_SHARED_DIR); skipped with a message when absent. The sweeps are
 // imported into a temporary bag the way ppf_import_pcd does (times from the TUM file's first
 // column, no IMU topic) and run through the same offline loop as ppf_offline, which must decide
-// LiDAR-only by itself. Bounds of the issue: every scan tracked, APE (SE(3)-aligned) <= 0.15 m in
+// LiDAR-only by itself. Bounds: every scan tracked, APE (SE(3)-aligned) <= 0.15 m in
 // both modes, and PPF's kNN map smaller than kNN's (skeleton points stay out of it).
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -1,8 +1,8 @@
-// Issue 15, moving start: sequences whose first scan and IMU sample are already in motion
+// Moving start: sequences whose first scan and IMU sample are already in motion
 // (ppf_sim --moving-start) must give odometry within 3 s of the first scan, with gravity right
 // from the start: position+yaw-aligned APE (a tilted world shows as error there) within the
-// static-start bound of the accuracy study, 0.5 % of the path, over the whole run. Before the
-// moving-start initialization the IMU never showed rest and no scan got a pose.
+// static-start bound of the accuracy study, 0.5 % of the path, over the whole run. Without the
+// moving-start initialization the IMU never shows rest and no scan gets a pose.
 #include <gtest/gtest.h>
 
 #include <cmath>

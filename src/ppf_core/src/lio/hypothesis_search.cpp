@@ -45,41 +45,6 @@ NavState StateAt(const Eigen::Isometry3d& T_world_lidar, const Eigen::Isometry3d
 
 }  // namespace
 
-FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
-                  const LidarOnlyOptions& options, const KnnOptions& knn) {
-  FitScore f;
-  if (frame.points_lidar.empty() || frame.map == nullptr || frame.map->size() == 0) return f;
-  const VoxelMap& map = *frame.map;
-  const size_t k = static_cast<size_t>(std::max(3, knn.k));
-  const long n = static_cast<long>(frame.points_lidar.size());
-  long covered = 0, inliers = 0;
-#ifdef _OPENMP
-  const int threads = knn.num_threads > 0 ? knn.num_threads : omp_get_max_threads();
-#endif
-#pragma omp parallel num_threads(threads) reduction(+ : covered, inliers)
-  {
-    std::vector<Eigen::Vector3f> nn;
-#pragma omp for schedule(dynamic, 256)
-    for (long i = 0; i < n; ++i) {
-      const Eigen::Vector3d p =
-          T_world_lidar * frame.points_lidar[static_cast<size_t>(i)].cast<double>();
-      if (map.GetClosest(p.cast<float>(), k, knn.max_neighbor_distance, &nn) < k) continue;
-      ++covered;
-      Eigen::Vector3d normal;
-      double d;
-      if (!FitPlane(nn, knn.plane_threshold, &normal, &d, knn.min_plane_spread)) continue;
-      if (std::abs(normal.dot(p) + d) < options.fit_gate) ++inliers;
-    }
-  }
-  f.inliers = static_cast<size_t>(inliers);
-  f.covered = static_cast<size_t>(covered);
-  // Too few covered points say nothing (a pose in empty space); 5 % of the scan at least.
-  if (covered > 0 && static_cast<double>(covered) >= 0.05 * static_cast<double>(n)) {
-    f.fit = static_cast<double>(inliers) / static_cast<double>(covered);
-  }
-  return f;
-}
-
 PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
                     const LidarOnlyOptions& options, const KnnOptions& knn,
                     const IekfOptions& iekf, double wide_gate) {
@@ -129,6 +94,7 @@ PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lid
   }
   probe.score.inliers = static_cast<size_t>(inliers);
   probe.score.covered = static_cast<size_t>(covered);
+  // Too few covered points say nothing (a pose in empty space); 5 % of the scan at least.
   if (covered > 0 && static_cast<double>(covered) >= 0.05 * static_cast<double>(n)) {
     probe.score.fit = static_cast<double>(inliers) / static_cast<double>(covered);
   }
@@ -155,6 +121,12 @@ PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lid
     probe.step_pos = step.tail<3>();
   }
   return probe;
+}
+
+FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+                  const LidarOnlyOptions& options, const KnnOptions& knn) {
+  // A zero-wide gate takes no row: the same neighbours and planes, no step.
+  return ProbePose(frame, T_world_lidar, options, knn, IekfOptions(), 0.0).score;
 }
 
 CoarseAlignment AlignHypotheses(const ScanFrame& frame,

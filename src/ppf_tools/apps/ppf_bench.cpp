@@ -1,7 +1,7 @@
-// ppf_bench: the speed and memory table of issue 14. Both modes on simulated urban sequences of
-// every LiDAR class, each run as its own ppf_offline process (so its peak RSS is its own), next to
-// a read-only pass over the same bag (what reading the bag alone costs); optionally callgrind
-// instructions per scan of the core alone.
+// ppf_bench: the speed and memory table. Both modes on simulated urban sequences of every LiDAR
+// class, each run as its own ppf_offline process (so its peak RSS is its own), next to a read-only
+// pass over the same bag (what reading the bag alone costs); optionally callgrind instructions
+// per scan of the core alone.
 //
 //   ppf_bench                     # 20 s urban VLP-16 / HDL-32 / HDL-64 / OS1-128, 2 threads
 //   ppf_bench --short             # CI: 5 s sequences, same table, checked, no time asserted

@@ -21,7 +21,7 @@ namespace fdds = eprosima::fastdds::dds;
 using Clock = std::chrono::steady_clock;
 
 // Cloud buffers are recycled: a fresh multi-MB vector per scan costs page faults and a memset
-// in the listener, which dominated its latency tail.
+// in the listener, the bulk of its latency tail (docs/decisions.md, "Cloud buffer pool").
 class NodeInputs::CloudPool : public std::enable_shared_from_this<CloudPool> {
  public:
   std::unique_ptr<sensor_msgs::msg::PointCloud2> Take() {

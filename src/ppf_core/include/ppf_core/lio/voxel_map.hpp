@@ -105,7 +105,7 @@ class VoxelMap {
     const VoxelKey c = ToVoxelKey(query, inv_resolution_);
     // k is tiny (5) in every use: an insertion-sorted array on the stack keeps the k best so far.
     // A per-query candidate vector and a partial sort cost a heap allocation and a heap sort per
-    // query, which dominated the kNN residual stage.
+    // query, the bulk of the kNN residual stage (docs/decisions.md, "kNN search on the stack").
     if (k <= kMaxStackK) {
       float best_d2[kMaxStackK];
       Point best[kMaxStackK];
@@ -328,8 +328,8 @@ class VoxelMap {
 // Voxel-grid downsampling: one point per occupied voxel, in order of first appearance
 // (deterministic). kCentroid (default, as PCL's VoxelGrid in Faster-LIO) returns the mean of the
 // voxel's points; kNearestToCentroid keeps the measured point closest to that mean, which always
-// lies on a surface (no points floating between two planes at edges). On the synthetic room of
-// test_end_to_end the centroid was slightly more accurate, hence the default.
+// lies on a surface (no points floating between two planes at edges). The centroid is the
+// default for its accuracy (docs/decisions.md, "Downsample to the centroid").
 // A non-positive or tiny voxel size returns the input unchanged.
 enum class DownsampleMode { kCentroid, kNearestToCentroid };
 

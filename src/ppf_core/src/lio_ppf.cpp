@@ -56,7 +56,6 @@ void LioPpf::Impl::ResetFilter(const std::string& reason) {
   motion.Reset();
   recent_fits.clear();
   lio_fits.clear();
-  lio_steps_rot.clear();
   lio_steps_pos.clear();
   map.clear();
   imu.clear();

@@ -188,7 +188,7 @@ struct LioPpf::Impl {
   ConstantVelocityModel motion;    // LiDAR-only prediction (IMU frame poses)
   std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
   std::deque<double> lio_fits;     // LIO: posterior fits of the last scans (consistency check)
-  std::deque<double> lio_steps_rot, lio_steps_pos;  // ... and the scan-alone steps (deg, m)
+  std::deque<double> lio_steps_pos;  // ... and the scan-alone steps' translation (m)
   bool contradicted = false;       // this scan's pose fits the map poorly and no guess did better
   size_t ignored_imu = 0;
   // IMU loss (lio_ppf.hpp): LIO running, but scans are registered LiDAR-only until IMU samples

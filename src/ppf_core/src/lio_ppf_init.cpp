@@ -171,7 +171,6 @@ void LioPpf::Impl::ClearMovingInit() {
   motion.Reset();
   recent_fits.clear();
   lio_fits.clear();
-  lio_steps_rot.clear();
   lio_steps_pos.clear();
   if (tracker) tracker->Reset();
   knn->Reset();

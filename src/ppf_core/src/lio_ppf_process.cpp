@@ -354,19 +354,21 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
     return ProbePose(sample, s.T_world_imu() * T_il, config.lidar_only, config.knn, config.iekf,
                      wide);
   };
-  // Beyond the bounds and well beyond what the scan alone says on the recent scans (a scene whose
-  // own matches scatter more, a kPpf map of scattered points only, must not set it off).
+  // The scan-alone step judges the position only: a heading or tilt error of degrees shows in
+  // the fit already, and on a fast hand-held walk the step's rotation scatters by a degree or two
+  // (de-skew within the sweep; in kPpf a map of scattered points only), which would set it off
+  // (docs/decisions.md, "Consistency check"). Beyond the bound and well beyond what the scan
+  // alone said on the recent scans.
   auto median = [](const std::deque<double>& d) {
     if (d.empty()) return 0.0;
     std::vector<double> v(d.begin(), d.end());
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
     return v[v.size() / 2];
   };
-  const double usual_rot = 3.0 * median(lio_steps_rot), usual_pos = 3.0 * median(lio_steps_pos);
+  const double usual_pos = 3.0 * median(lio_steps_pos);
   auto too_far = [&](const PoseProbe& p) {
-    const double rot_deg = p.step_rot.norm() * 180.0 / M_PI, pos = p.step_pos.norm();
-    return (pos > co.max_step_pos && pos > usual_pos) ||
-           (rot_deg > co.max_step_rot_deg && rot_deg > usual_rot);
+    const double pos = p.step_pos.norm();
+    return pos > co.max_step_pos && pos > usual_pos;
   };
   const PoseProbe probe = probe_at(state);
   const double fit = probe.score.fit;
@@ -375,9 +377,8 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   r->disagreement_pos_m = probe.step_pos.norm();
   auto remember = [this](double f, const PoseProbe& p) {
     lio_fits.push_back(f);
-    lio_steps_rot.push_back(p.step_rot.norm() * 180.0 / M_PI);
     lio_steps_pos.push_back(p.step_pos.norm());
-    for (std::deque<double>* d : {&lio_fits, &lio_steps_rot, &lio_steps_pos}) {
+    for (std::deque<double>* d : {&lio_fits, &lio_steps_pos}) {
       if (d->size() > 10) d->pop_front();
     }
   };
@@ -428,8 +429,7 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   if (poor_fit) {
     why << "fit " << fit << " < " << co.fit_ratio << " x recent " << baseline;
   } else {
-    why << "the scan alone moves it " << r->disagreement_rot_deg << " deg, "
-        << r->disagreement_pos_m << " m";
+    why << "the scan alone moves it " << r->disagreement_pos_m << " m";
   }
   why << ")";
 

@@ -107,10 +107,9 @@ struct ConsistencyOptions {
   double fit_ratio = 0.7;
   int fit_points = 1000;  // sample of the downsampled scan that is scored
   // ... or the scan alone (ProbePose: one step of the rows within lidar_only.coarse_max_residual,
-  // no prior) would still move the posterior farther than this. The narrow gates hide a step of
-  // the position along the way from the fit: most points lie on surfaces parallel to it.
-  double max_step_pos = 0.1;       // m
-  double max_step_rot_deg = 1.0;   // degrees
+  // no prior) would still move the posterior's position farther than this. The narrow gates hide
+  // a step along the way from the fit: most points lie on surfaces parallel to it.
+  double max_step_pos = 0.1;  // m
   // A re-anchored posterior is taken when it fits at least this much better (share of the sample
   // points), or no worse while the scan alone no longer moves it past the bounds above.
   double min_gain = 0.1;

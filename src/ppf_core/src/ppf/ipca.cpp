@@ -8,10 +8,10 @@
 namespace ppf {
 namespace {
 
-// Measured on the 2-core dev box: a pass over a downsampled scan (~7k points) takes tens of
-// microseconds serially, less than what a fork/join costs once the cores are shared (a barrier
-// waiting for a preempted thread costs a scheduler slice). Parallel only for large inputs
-// (full-resolution scans, 100k+ points).
+// A pass over a downsampled scan is cheaper serially than a fork/join once the cores are shared
+// (a barrier waiting for a preempted thread costs a scheduler slice; docs/decisions.md,
+// "Parallel moments only for full scans"). Parallel only for large inputs (full-resolution
+// scans).
 constexpr long kParallelPoints = 32768;
 
 // First and second moments of a point subset, about a reference point to avoid cancellation.

@@ -15,7 +15,8 @@ void SplitSandwich(const std::vector<Eigen::Vector3f>& points, const Plane& plan
               nz = static_cast<float>(plane.n.z()), d = static_cast<float>(plane.d);
   const float strict = static_cast<float>(delta);
   const float semi = static_cast<float>(delta * (semi_factor > 1.0 ? semi_factor : 1.0));
-// Parallel only for full-resolution scans; see ipca.cpp for the measured reason.
+// Parallel only for full-resolution scans (docs/decisions.md, "Parallel moments only for full
+// scans").
 #pragma omp parallel for schedule(static) if (n > 32768)
   for (long i = 0; i < n; ++i) {
     const auto& p = points[i];

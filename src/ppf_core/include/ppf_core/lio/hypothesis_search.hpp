@@ -1,9 +1,9 @@
 // Registration from several initial guesses: the LiDAR-only mode's answer to a poor prediction.
 //
 // Without an IMU the prediction is the constant-velocity model (motion_model.hpp). A hand-held
-// sensor at 2 Hz keyframes turns a median 7.7 deg between scans, and its turn rate changes up to
-// 34 deg from one interval to the next (balm_realworld_lidar), so the guess can be tens of
-// degrees off; the kNN registration only reaches about one voxel neighbourhood (1 m at the 0.5 m
+// sensor at sparse keyframes turns several degrees between scans, and its turn rate changes by
+// tens of degrees from one interval to the next (docs/decisions.md, "Several guesses without an
+// IMU"), so the guess can be tens of degrees off; the kNN registration only reaches about one voxel neighbourhood (1 m at the 0.5 m
 // map), i.e. a few degrees at the ranges that dominate a scan. So each guess is first aligned
 // coarsely (a sample of the scan, a wide residual gate, more iterations, no refined gate), its
 // converged fit scored (the share of sample points with a map plane within fit_gate), and the

@@ -6,6 +6,7 @@
 //   ppf_bench                     # 20 s urban VLP-16 / HDL-32 / HDL-64 / OS1-128, 2 threads
 //   ppf_bench --short             # CI: 5 s sequences, same table, checked, no time asserted
 //   ppf_bench --callgrind         # + Ir per scan (1 thread, ProcessOne + AddScan only)
+//   ppf_bench --peers DIR         # + the peer odometries' runners in DIR, same bags and threads
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -322,6 +323,171 @@ bool CheckTable(const std::string& table, const std::vector<std::string>& sequen
   return true;
 }
 
+// ---- Peer odometries (same-run references) ---------------------------------------------------
+// The peers are other projects' code built outside the repository; they are only ever run as
+// child processes through their runner commands, so nothing of theirs is linked or copied here.
+struct PeerSpec {
+  const char* label;   // as printed
+  const char* runner;  // <runner> in DIR/build/<name>/<runner>, DIR/<runner>, DIR/<runner>.py
+  const char* name;
+  const char* probe;  // Python module the .py runner needs
+};
+constexpr PeerSpec kPeers[] = {
+    {"RKO-LIO", "rko_lio_runner", "rko_lio", "rko_lio.rko_lio_pybind"},
+    {"KISS-ICP", "kiss_icp_runner", "kiss_icp", "kiss_icp.pybind.kiss_icp_pybind"},
+};
+
+bool Executable(const fs::path& p) {
+  std::error_code ec;
+  return fs::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0;
+}
+
+// The command prefix that runs `peer` from `dir`, or empty with *why saying what is missing:
+// setup_peers.sh's wrapper (DIR = its PEERS_DIR), an executable runner in DIR, or the runner's
+// Python source in DIR when python3 can import the peer's built module.
+std::vector<std::string> FindPeerRunner(const std::string& dir, const PeerSpec& peer,
+                                        const std::string& log, std::string* why) {
+  const fs::path d(dir);
+  for (const fs::path& p : {d / "build" / peer.name / peer.runner, d / peer.runner}) {
+    if (Executable(p)) return {p.string()};
+  }
+  const fs::path py = d / (std::string(peer.runner) + ".py");
+  std::error_code ec;
+  if (!fs::is_regular_file(py, ec)) {
+    *why = std::string("not found in ") + dir + " (no build/" + peer.name + "/" + peer.runner +
+           ", " + peer.runner + " or " + peer.runner + ".py)";
+    return {};
+  }
+  const std::vector<std::string> probe = {"python3", "-c", std::string("import ") + peer.probe};
+  if (RunChild(probe, log).exit_code != 0) {
+    *why = py.string() + " found, but its dependencies are not installed (python3 cannot import " +
+           peer.probe + "; build them with setup_peers.sh and pass its PEERS_DIR)";
+    return {};
+  }
+  return {"python3", py.string()};
+}
+
+// Median of the first column of a runner's --times file ('#' lines are comments): the wall ms
+// inside the peer's registration call per scan. False with *error if no row parses.
+bool ReadPeerTimes(const std::string& path, std::vector<double>* ms, std::string* error) {
+  std::ifstream in(path);
+  if (!in) {
+    *error = path + ": missing";
+    return false;
+  }
+  std::string line;
+  int n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream ls(line);
+    std::string first;
+    double v = 0;
+    ls >> first;
+    if (!ParseNumber(first, &v) || v < 0) {
+      *error = path + ":" + std::to_string(n) + ": '" + first + "' is not a time in ms";
+      return false;
+    }
+    ms->push_back(v);
+  }
+  if (ms->empty()) {
+    *error = path + ": no scan timed";
+    return false;
+  }
+  return true;
+}
+
+// T_imu_lidar of a simulated sequence as the runners take it (translation, yaw in degrees), from
+// its calibration.yaml. The runners model yaw only; the sim's small roll and pitch are dropped.
+bool ReadExtrinsic(const std::string& calibration, std::vector<std::string>* out) {
+  std::ifstream in(calibration);
+  std::string line;
+  std::vector<double> t, q;
+  auto numbers = [](const std::string& l) {
+    std::vector<double> v;
+    const auto a = l.find('['), b = l.find(']');
+    if (a == std::string::npos || b == std::string::npos || b < a) return v;
+    std::string body = l.substr(a + 1, b - a - 1);
+    std::replace(body.begin(), body.end(), ',', ' ');
+    std::istringstream ls(body);
+    for (double x; ls >> x;) v.push_back(x);
+    return v;
+  };
+  bool in_block = false;
+  while (std::getline(in, line)) {
+    if (line.find("T_imu_lidar:") != std::string::npos) {
+      in_block = true;
+      continue;
+    }
+    if (!in_block) continue;
+    if (line.find("translation:") != std::string::npos) t = numbers(line);
+    if (line.find("quaternion_wxyz:") != std::string::npos) q = numbers(line);
+    if (t.size() == 3 && q.size() == 4) break;
+  }
+  if (t.size() != 3 || q.size() != 4) return false;
+  const double yaw =
+      std::atan2(2.0 * (q[0] * q[3] + q[1] * q[2]), 1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3])) *
+      180.0 / M_PI;
+  out->clear();
+  for (double v : {t[0], t[1], t[2], yaw}) {
+    std::ostringstream os;
+    os << std::setprecision(9) << v;
+    out->push_back(os.str());
+  }
+  return true;
+}
+
+// The same sequence (same ppf_sim options and seed, so the same data) in a rosbag2 sqlite3
+// container, which is what the runners read; generated once next to the MCAP one.
+std::string EnsureSqliteSequence(const ppf::tools::SequenceSpec& seq, const std::string& mcap_bag,
+                                 double duration) {
+  const std::string dir = mcap_bag + "_sqlite3";
+  const std::string sim_log = dir + ".sim.log";
+  std::cerr << "ppf_bench: " << seq.Name() << ": sqlite3 copy for the peers...\n";
+  const bool ok = ppf::tools::GenerateSequenceOnce(dir, [&](const std::string& out) {
+    std::ostringstream d;
+    d << duration;
+    std::vector<std::string> args = {"ppf_sim", "--scene",    seq.scene, "--lidar",
+                                     seq.lidar, "--duration", d.str(),   "--seed",
+                                     "1",       "--storage",  "sqlite3"};
+    std::istringstream extra(seq.sim_extra);
+    for (std::string w; extra >> w;) args.push_back(w);
+    args.push_back("--out");
+    args.push_back(out);
+    return RunChild(args, sim_log).exit_code == 0;
+  });
+  return ok ? dir : std::string();
+}
+
+struct PeerRow {
+  std::string sequence, peer;
+  size_t scans = 0;
+  double median_ms = 0.0;
+};
+
+// The peers' medians next to ours: ours/peer < 1 means ours is faster. Our time is the core's
+// t_total_ms (decoded scan in, pose out); a runner's is the registration call on a decoded scan.
+std::string PeerTable(const std::vector<PeerRow>& peers, const std::vector<ModeRow>& ours) {
+  std::ostringstream os;
+  os << std::left << std::setw(14) << "sequence" << ' ' << std::setw(9) << "peer" << std::right
+     << std::setw(7) << "scans" << std::setw(11) << "median ms" << std::setw(10) << "ppf ms"
+     << std::setw(10) << "knn ms" << std::setw(10) << "ppf/peer" << std::setw(10) << "knn/peer"
+     << "\n";
+  for (const auto& p : peers) {
+    double ppf = -1, knn = -1;
+    for (const auto& r : ours) {
+      if (r.sequence != p.sequence) continue;
+      (r.mode == "ppf" ? ppf : knn) = Median(r.samples.stage[kNumStages - 1]);
+    }
+    os << std::left << std::setw(14) << p.sequence << ' ' << std::setw(9) << p.peer << std::right
+       << std::fixed << std::setprecision(2) << std::setw(7) << p.scans << std::setw(11)
+       << p.median_ms << std::setw(10) << ppf << std::setw(10) << knn << std::setw(10)
+       << (p.median_ms > 0 ? ppf / p.median_ms : 0.0) << std::setw(10)
+       << (p.median_ms > 0 ? knn / p.median_ms : 0.0) << "\n";
+  }
+  return os.str();
+}
+
 void PrintHelp() {
   std::cout
       << "usage: ppf_bench [options]\n\n"
@@ -337,6 +503,17 @@ void PrintHelp() {
       << "  --callgrind           also the Ir per scan column (slow: about 50x)\n"
          "  --ppf-offline PATH    the ppf_offline that runs the modes (default: the one next\n"
          "                        to ppf_bench, which always does the read-only pass)\n"
+         "  --peers DIR           also run the peer odometries (RKO-LIO, KISS-ICP) on the\n"
+         "                        same sequences (a rosbag2 sqlite3 copy, same seed) and\n"
+         "                        threads, each as a child process, and print their median\n"
+         "                        registration ms per scan (the runner's --times column 1)\n"
+         "                        and ours over theirs (ppf/peer, knn/peer: < 1 = ours\n"
+         "                        faster). DIR is setup_peers.sh's PEERS_DIR (runners in\n"
+         "                        build/<peer>/), or a directory holding the runners\n"
+         "                        (rko_lio_runner, kiss_icp_runner, executable or .py run\n"
+         "                        with python3). A peer that is missing or whose dependencies\n"
+         "                        are not installed gets one line saying so; ours prints\n"
+         "                        alone and the exit code does not depend on the peers.\n"
          "  -h, --help            this text\n";
 }
 
@@ -416,6 +593,7 @@ int main(int argc, char** argv) {
   // older build for a before/after table.
   const std::string reader = SelfDir() + "/ppf_offline";
   std::string ppf_offline = reader;
+  std::string peers_dir;
   auto own = [&](int argc_, char** argv_, int* i, std::string* error) {
     const std::string a = argv_[*i];
     if (a == "--callgrind") {
@@ -428,6 +606,14 @@ int main(int argc, char** argv) {
         return -1;
       }
       ppf_offline = argv_[++*i];
+      return 1;
+    }
+    if (a == "--peers") {
+      if (*i + 1 >= argc_) {
+        *error = "missing value after --peers";
+        return -1;
+      }
+      peers_dir = argv_[++*i];
       return 1;
     }
     return 0;
@@ -445,6 +631,26 @@ int main(int argc, char** argv) {
   if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
   const fs::path runs = fs::path(opts.workdir) / "runs";
   fs::create_directories(runs);
+
+  // Which peers can run: one line for each that cannot, printed after our table.
+  std::vector<std::string> peer_notes;
+  std::vector<std::pair<const PeerSpec*, std::vector<std::string>>> peers;
+  for (const auto& peer : kPeers) {
+    if (peers_dir.empty()) {
+      peer_notes.push_back(std::string("ppf_bench: peer ") + peer.label +
+                           ": not run (no --peers DIR)");
+      continue;
+    }
+    std::string why;
+    auto cmd = FindPeerRunner(peers_dir, peer,
+                              (runs / (std::string(peer.name) + "_probe.log")).string(), &why);
+    if (cmd.empty()) {
+      peer_notes.push_back(std::string("ppf_bench: peer ") + peer.label + ": " + why);
+    } else {
+      peers.emplace_back(&peer, cmd);
+    }
+  }
+  std::vector<PeerRow> peer_rows;
 
   std::vector<ModeRow> rows;
   std::vector<std::string> names;
@@ -469,6 +675,47 @@ int main(int argc, char** argv) {
       rows.push_back(RunMode({ppf_offline, bag, preset, threads, callgrind}, seq.Name(), mode,
                              stem + "_" + mode, read.max_rss_mb));
     }
+
+    if (peers.empty()) continue;
+    const std::string sqlite_bag = EnsureSqliteSequence(seq, bag, opts.duration);
+    if (sqlite_bag.empty()) {
+      peer_notes.push_back("ppf_bench: peers on " + seq.Name() +
+                           ": not run (ppf_sim --storage sqlite3 failed, see " + bag +
+                           "_sqlite3.sim.log)");
+      continue;
+    }
+    std::vector<std::string> extrinsic;
+    if (!ReadExtrinsic(bag + "/calibration.yaml", &extrinsic)) {
+      peer_notes.push_back("ppf_bench: peers on " + seq.Name() + ": no T_imu_lidar in " + bag +
+                           "/calibration.yaml, the runners' default extrinsic used");
+    }
+    for (const auto& [peer, cmd] : peers) {
+      const std::string base = stem + "_" + peer->name;
+      std::vector<std::string> args = cmd;
+      for (const auto& a : {sqlite_bag, base + ".tum", std::string("--threads"),
+                            std::to_string(threads), std::string("--times"), base + ".times"}) {
+        args.push_back(a);
+      }
+      if (!extrinsic.empty()) {
+        args.push_back("--extrinsic");
+        args.insert(args.end(), extrinsic.begin(), extrinsic.end());
+      }
+      std::cerr << "ppf_bench: " << seq.Name() << ": " << peer->label << "...\n";
+      fs::remove(base + ".times");
+      const auto run = RunChild(args, base + ".log");
+      std::vector<double> ms;
+      std::string why;
+      if (run.exit_code != 0) {
+        peer_notes.push_back(std::string("ppf_bench: peer ") + peer->label + " on " + seq.Name() +
+                             ": runner failed (exit " + std::to_string(run.exit_code) + ", see " +
+                             base + ".log)");
+      } else if (!ReadPeerTimes(base + ".times", &ms, &why)) {
+        peer_notes.push_back(std::string("ppf_bench: peer ") + peer->label + " on " + seq.Name() +
+                             ": " + why);
+      } else {
+        peer_rows.push_back({seq.Name(), peer->label, ms.size(), Median(ms)});
+      }
+    }
   }
 
   const std::string table = Table(rows);
@@ -478,11 +725,21 @@ int main(int argc, char** argv) {
                " --read-only on the same bag, +MB: the difference"
             << (callgrind ? "; MIr/scan: callgrind, 1 thread, core only" : "") << "\n"
             << table;
-  if (!CheckTable(table, names, callgrind, &error)) {
+  // Our table's check first (it concerns ours alone), then the peers: their outcome never
+  // changes the exit code.
+  const bool consistent = CheckTable(table, names, callgrind, &error);
+  if (consistent) {
+    std::cout << "ppf_bench: table complete and consistent (" << names.size()
+              << " sequences x 2 modes)\n";
+  } else {
     std::cout << "ppf_bench: table check failed: " << error << "\n";
-    return 1;
   }
-  std::cout << "ppf_bench: table complete and consistent (" << names.size()
-            << " sequences x 2 modes)\n";
-  return 0;
+  if (!peer_rows.empty()) {
+    std::cout << "\npeers, same bags (sqlite3 copy) and " << threads
+              << " threads: median ms per scan inside the peer's registration call; ppf/knn ms:"
+                 " our median total;\nppf/peer, knn/peer: ours over theirs (< 1: ours faster)\n"
+              << PeerTable(peer_rows, rows);
+  }
+  for (const auto& n : peer_notes) std::cout << n << "\n";
+  return consistent ? 0 : 1;
 }

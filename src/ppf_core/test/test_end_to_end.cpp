@@ -259,7 +259,7 @@ TEST(EndToEnd, AutoModeFallsBackToLidarOnlyWithoutImu) {
 // gravity from the LiDAR-only poses. No reset, no jump, a pose for every scan, gravity in the
 // LiDAR-only world right, and the run as accurate as a LiDAR-only one. Also with the core 1 s
 // behind the IMU stream (the ASan node in CI): the scans that began before the first sample stay
-// out of the window, which used to fail on them once and start again (LIO 1.5 s later).
+// out of the window; failing on them would start the window again and delay LIO.
 class LateImu : public ::testing::TestWithParam<double> {};
 
 TEST_P(LateImu, ImuStartingAfterALidarOnlyStartTakesOverWithoutJump) {

@@ -297,8 +297,9 @@ TEST_F(EndToEnd, FiveTimesRateKeepsUpOrDropsAsDesignedWithBoundedMemory) {
   }
   std::printf("5x: received %.0f, processed %.0f, dropped %.0f, odometry %.0f\n", received,
               processed, dropped, odom);
-  // Bounded memory: two queued HDL-32 scans, the bounded local map and DDS histories (measured
-  // ~90 MB here), against ~190 MB of scans arriving in 2 s that an unbounded queue would hold.
+  // Bounded memory: two queued HDL-32 scans, the bounded local map and DDS histories, far below
+  // the scans arriving in 2 s that an unbounded queue would hold (docs/decisions.md, "Figures
+  // behind test bounds").
   EXPECT_GT(run.max_rss_kb, 0);
   EXPECT_LT(run.max_rss_kb, 300 * 1024);
 }

@@ -445,9 +445,10 @@ TEST(NodeProcess, FiveMillionPointCloudIsRefusedBySizeAndOdometryGoesOnWithMemor
   ASSERT_GT(hwm_kb, 0);
   // While refusing it the node held the cloud about once: Fast DDS's reassembled payload. Our
   // size gate reads the declared point count from the payload's CDR header and refuses it
-  // undecoded (before: decoded into a second copy first, VmHWM +2.35x the cloud). Afterwards none of it stays in the node's own memory (before: the reader
-  // history slot and the pooled buffer kept both copies resident); what VmRSS keeps is the
-  // writer's shared-memory segment the cloud passed through, mapped and bounded by its size
+  // undecoded, without a second, decoded copy. Afterwards none of it stays in the node's own
+  // memory (neither the reader history slot nor the pooled buffer keeps a copy resident;
+  // docs/decisions.md, "Figures behind test bounds"); what VmRSS keeps is the writer's
+  // shared-memory segment the cloud passed through, mapped and bounded by its size
   // (test_loopback.xml).
   if (ppf::test::kUnderTsan || ppf::test::kUnderAsan) {
     // The sanitizers' allocators keep freed memory and their shadow grows with every byte

@@ -223,7 +223,8 @@ TEST(Hostile, EveryCloudAndImuDefectIsRefusedCountedLoggedAndTheNextScanGetsOdom
   EXPECT_EQ(CountLinesWith(log, ": " + std::to_string(static_cast<int>(nonfinite)) + " of "), 1);
   EXPECT_EQ(CountLinesWith(log, "points non-finite (NaN/Inf), dropped"), 1);
 
-  // The IMU silent for 0.4 s at rest, after initialization: one gap over the core's imu.max_gap_warn (0.1 s), named once and counted, no reset.
+  // The IMU silent for 0.4 s at rest, after initialization: one gap over the core's
+  // imu.max_gap_warn (0.1 s), named once and counted, no reset.
   EXPECT_NEAR(SummaryField(run.result, "skipped_imu"), 80, 2);  // 0.4 s of 200 Hz
   EXPECT_EQ(SummaryField(s, "imu_gaps"), 1);
   EXPECT_NEAR(SummaryField(s, "imu_gap_warn_max_s"), 0.405, 0.01);

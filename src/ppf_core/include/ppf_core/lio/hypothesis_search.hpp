@@ -5,11 +5,10 @@
 // tens of degrees from one interval to the next (docs/decisions.md, "Several guesses without an
 // IMU"), so the guess can be tens of degrees off; the kNN registration only reaches about one
 // voxel neighbourhood (1 m at the 0.5 m map), i.e. a few degrees at the ranges that dominate a
-// scan. So each guess is first aligned
-// coarsely (a sample of the scan, a wide residual gate, more iterations, no refined gate), its
-// converged fit scored (the share of sample points with a map plane within fit_gate), and the
-// best becomes the prediction of the normal update (and of the skeleton tracker's incremental
-// plane guesses). The constant-velocity guess comes first and is kept at once when it fits
+// scan. So each guess is first aligned coarsely (a sample of the scan, a wide residual gate, more
+// iterations, no refined gate), its converged fit scored (the share of sample points with a map
+// plane within fit_gate), and the best becomes the prediction of the normal update (and of the
+// skeleton tracker's incremental plane guesses). The constant-velocity guess comes first and is kept at once when it fits
 // well: the others cost time only where the model failed.
 #pragma once
 

@@ -18,8 +18,8 @@
 namespace {
 
 // 120 s of simulated time (860 m) with a 75 m map radius: the drive leaves the radius 10 times
-// (counted on the ground truth, so exactly). A smaller radius costs accuracy: 50 m gave 0.94 %
-// APE in PPF mode, 75 m 0.36 % (kNN 0.38 % / 0.16 %).
+// (counted on the ground truth, so exactly). A smaller radius costs accuracy (docs/decisions.md,
+// "Map radius on a long drive").
 constexpr double kDuration = 120.0;
 constexpr double kMapRadius = 75.0;
 

@@ -85,7 +85,8 @@ struct LidarOnlyOptions {
   // The constant-velocity de-skew extrapolates the previous interval's twist; a hand-held turn
   // rate changes by tens of deg/s within one scan interval, a de-skew error of degrees. Off by
   // default: on car-like motion, which the model already de-skews well, the extra updates made
-  // the poses noisier (docs/results.md, LiDAR-only); 2 for a hand-held sensor.
+  // the poses noisier (docs/results.md, "LiDAR-only on real and simulated data"); 2 for a
+  // hand-held sensor.
   int redeskew_iterations = 0;
   double redeskew_min_change = 0.002;  // rad and m
 };

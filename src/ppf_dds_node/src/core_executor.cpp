@@ -121,6 +121,7 @@ void CoreExecutor::Run() {
     if (draining && scan_queue_.Size() == 0 && imu_queue_.Size() == 0) {
       DropImuCandidates();                   // the stream ended before confirming them
       if (!pending_.empty()) RunCore(true);  // remaining scans, IMU extrapolated
+      stats_.SetCoreInputTotals(core_->input_stats());  // IMU fed after the last Process
       break;
     }
   }
@@ -259,6 +260,7 @@ void CoreExecutor::RunCore(bool flush) {
   const Clock::time_point t0 = Clock::now();
   std::vector<ScanResult> results = core_->Process(flush);
   const Clock::time_point t1 = Clock::now();
+  stats_.SetCoreInputTotals(core_->input_stats());
   const double process_ms = MsBetween(t0, t1);
   stats_.AddCoreBusy(t1 - t0);
   // Core time of a result: its AddScan plus its share of the Process call (by the core's own

@@ -118,6 +118,11 @@ void NodeStats::CountImuInput(const ScanResult& r) {
   summary_.imu_gap_warn_max_s = std::max(summary_.imu_gap_warn_max_s, r.imu_gap_longest_s);
 }
 
+void NodeStats::SetCoreInputTotals(const InputStats& totals) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  summary_.imu_clock_offset_dropped = totals.imu_clock_offset_dropped;
+}
+
 std::pair<uint64_t, uint64_t> NodeStats::Lost() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return {summary_.scans_lost, summary_.imu_lost};
@@ -221,7 +226,9 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " core_stalls=" << s.core_stalls << " scans_unusual=" << s.scans_unusual
     << " points_bad_time=" << s.points_bad_time << " imu_conflicts=" << s.imu_conflicts
     << " imu_conflicts_unresolved=" << s.imu_conflicts_unresolved << " imu_gaps=" << s.imu_gaps
-    << " imu_gap_warn_max_s=" << s.imu_gap_warn_max_s << " lidar_overruled=" << s.lidar_overruled
+    << " imu_gap_warn_max_s=" << s.imu_gap_warn_max_s
+    << " imu_clock_offset_dropped=" << s.imu_clock_offset_dropped
+    << " lidar_overruled=" << s.lidar_overruled
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

@@ -64,6 +64,9 @@ class NodeStats {
   void CountResult(const ScanResult& r);
   // A result that belongs to no scan (ScanResult::input_id 0): a reset the core did itself.
   void CountNotice(const ScanResult& r);
+  // The core's input totals (LioPpf::input_stats, kept across its Reset) for what no ScanResult
+  // carries per scan.
+  void SetCoreInputTotals(const InputStats& totals);
   // Scans and IMU samples lost in transport so far (sequence gaps), for log lines.
   std::pair<uint64_t, uint64_t> Lost() const;
   // One scan whose odometry was published.

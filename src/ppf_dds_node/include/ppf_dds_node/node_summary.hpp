@@ -46,6 +46,9 @@ struct NodeSummary {
   // Gaps between valid IMU samples longer than the core's imu.max_gap_warn, and the longest.
   uint64_t imu_gaps = 0;
   double imu_gap_warn_max_s = 0;
+  // IMU samples the core set aside because the IMU's clock ran seconds behind the LiDAR's
+  // (InputStats::imu_clock_offset_dropped; one WARN names the offset, the scans go LiDAR-only).
+  uint64_t imu_clock_offset_dropped = 0;
   // Stamps off the stream's timeline (> 0.5 s back or ahead) that the following samples did
   // not confirm: single outliers, dropped instead of restarting the filter.
   uint64_t imu_outliers = 0;

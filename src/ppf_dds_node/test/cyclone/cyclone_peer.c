@@ -17,6 +17,8 @@
  *                    "HOSTILE name=..." per defect and at the end "HOSTILE_CHECK name=... scan=S
  *                    odom=0|1": whether odometry arrived for the scan stamped S.
  *   --imu-gap S L    send no IMU from S s to S+L s after the first message (clouds go on).
+ *   --imu-clock-offset S D  from S s after the first message on, stamp every IMU sample D s
+ *                    earlier (the IMU's clock falls behind the LiDAR's and stays there).
  *   --max-points N   the replicated "several million points" cloud has about N points [2100000].
  *   --go-file PATH   after READY, send nothing until PATH exists (30 s at most): the test creates
  *                    it once the node has matched our writers too. Without it: 0.5 s grace.
@@ -59,6 +61,7 @@ typedef struct {
   double wait_s;
   int hostile_from;
   double gap_start, gap_len;
+  double offset_start, offset_s;
   size_t max_points;
   const char* go_file;
 } options_t;
@@ -70,6 +73,8 @@ static int parse_options(int argc, char** argv, options_t* o) {
   o->hostile_from = -1;
   o->gap_start = -1;
   o->gap_len = 0;
+  o->offset_start = -1;
+  o->offset_s = 0;
   o->max_points = 2100000;
   o->go_file = NULL;
   for (int i = 4; i < argc; ++i) {
@@ -78,6 +83,9 @@ static int parse_options(int argc, char** argv, options_t* o) {
     } else if (strcmp(argv[i], "--imu-gap") == 0 && i + 2 < argc) {
       o->gap_start = atof(argv[++i]);
       o->gap_len = atof(argv[++i]);
+    } else if (strcmp(argv[i], "--imu-clock-offset") == 0 && i + 2 < argc) {
+      o->offset_start = atof(argv[++i]);
+      o->offset_s = atof(argv[++i]);
     } else if (strcmp(argv[i], "--max-points") == 0 && i + 1 < argc) {
       o->max_points = (size_t)atoll(argv[++i]);
     } else if (strcmp(argv[i], "--go-file") == 0 && i + 1 < argc) {
@@ -190,7 +198,7 @@ typedef struct {
 typedef struct {
   const options_t* o;
   const endpoints_t* e;
-  int sent_scans, sent_imu, write_errors, skipped_imu, defects_sent;
+  int sent_scans, sent_imu, write_errors, skipped_imu, defects_sent, offset_imu;
   int64_t bag0;
   int clouds_read, hostile_step, imu_defect, stall_left, conflict_left;
   check_t checks[64];
@@ -199,12 +207,23 @@ typedef struct {
   int holding;
 } replay_t;
 
-static void send_imu(replay_t* r, const record_head_t* h, const imu_t* m) {
+static void send_imu(replay_t* r, const record_head_t* h, const imu_t* orig) {
   const options_t* o = r->o;
   if (o->gap_start >= 0 && h->bag_ns - r->bag0 >= (int64_t)(o->gap_start * 1e9) &&
       h->bag_ns - r->bag0 < (int64_t)((o->gap_start + o->gap_len) * 1e9)) {
     r->skipped_imu++; /* the IMU falls silent, the LiDAR goes on */
     return;
+  }
+  imu_t shifted = *orig;
+  const imu_t* m = orig;
+  if (o->offset_start >= 0 && h->bag_ns - r->bag0 >= (int64_t)(o->offset_start * 1e9)) {
+    /* The IMU's clock behind the LiDAR's from here on; the sample itself is valid. */
+    const int64_t ns = (int64_t)shifted.header.stamp.sec * 1000000000LL +
+                       shifted.header.stamp.nanosec - (int64_t)(o->offset_s * 1e9);
+    shifted.header.stamp.sec = (int32_t)(ns / 1000000000LL);
+    shifted.header.stamp.nanosec = (uint32_t)(ns % 1000000000LL);
+    m = &shifted;
+    r->offset_imu++;
   }
   if (r->imu_defect == I_CONFLICT) {
     r->conflict_left = kConflictSamples;
@@ -397,10 +416,10 @@ static void print_results(const replay_t* r, const tally_t* t) {
   printf(
       "RESULT sent_scans=%d sent_imu=%d write_errors=%d odom=%d odom_bad=%d odom_frames_bad=%d "
       "odom_not_monotonic=%d planes=%d planes_bad=%d planes_total=%d skipped_imu=%d "
-      "defects_sent=%d hostile_checks=%d hostile_checks_failed=%d\n",
+      "defects_sent=%d hostile_checks=%d hostile_checks_failed=%d offset_imu=%d\n",
       r->sent_scans, r->sent_imu, r->write_errors, t->odom, t->odom_bad, t->odom_frames_bad,
       t->odom_not_monotonic, t->planes, t->planes_bad, t->planes_total, r->skipped_imu,
-      r->defects_sent, r->n_checks, checks_failed);
+      r->defects_sent, r->n_checks, checks_failed, r->offset_imu);
   fflush(stdout);
 }
 

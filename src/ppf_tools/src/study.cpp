@@ -48,7 +48,7 @@ bool ParseSequenceList(const std::string& list, std::vector<SequenceSpec>* out,
       *error = "sequence '" + item + "' is not scene:lidar (e.g. urban:hdl64)";
       return false;
     }
-    SequenceSpec seq{item.substr(0, colon), item.substr(colon + 1)};
+    SequenceSpec seq{item.substr(0, colon), item.substr(colon + 1), ""};
     if (!Contains(scenes, seq.scene)) {
       *error = "sequence '" + item + "': unknown scene '" + seq.scene + "' (" + Join(scenes) + ")";
       return false;

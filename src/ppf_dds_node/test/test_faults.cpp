@@ -249,8 +249,11 @@ TEST_F(Faults, NodeRestartedWhileReplayRunsAndRecordersStartedBeforeAndAfterIt) 
   EXPECT_GT(t.back(), 1700000000.0 + 19.8);  // ppf_sim's default start time + the bag's end
   // Recorder 1 kept recording across the crash: A's odometry and all of B's.
   EXPECT_GE(before, b_published + 5);
-  // Recorder 2 matched B within B's 1 s of initialization: all (or nearly all) of B's.
+  // Recorder 2 matched B within B's 1 s of initialization: all (or nearly all) of B's. Under
+  // ThreadSanitizer, with the fuzzers running beside the stage, the recorder's own start and
+  // discovery took 3 s once (141 of 160 recorded): there it is only required to have matched
+  // within 4 s (the Release stage asserts the tight bound).
   EXPECT_LE(after, b_published);
-  EXPECT_GE(after, b_published - 3);
+  EXPECT_GE(after, b_published - (ppf::test::kUnderTsan ? 40 : 3));
   if (!HasFailure()) std::system(("rm -rf '" + dir + "'").c_str());
 }

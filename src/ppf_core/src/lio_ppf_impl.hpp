@@ -10,6 +10,7 @@
 //                          and the moving start's window)
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <deque>
@@ -51,6 +52,13 @@ struct LioPpf::Impl {
   using Clock = std::chrono::steady_clock;
   static double MsSince(Clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  }
+  // The upper median (element size/2 in order); 0 for none.
+  static double Median(const std::deque<double>& d) {
+    if (d.empty()) return 0.0;
+    std::vector<double> v(d.begin(), d.end());
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
   }
   static void Append(std::string* reason, const std::string& what) {
     if (what.empty()) return;

@@ -129,10 +129,7 @@ CoarseAlignment LioPpf::Impl::AlignGuesses(double t_end) {
   if (fallback_scan) AddAlongTrackGuesses(T_cv * T_il, motion.velocity_world(), dt, &h);
   if (h.size() > before_along) options.good_fit = 1.0;  // along a street many places fit well
   if (recent_fits.size() >= 3) {
-    std::vector<double> sorted(recent_fits.begin(), recent_fits.end());
-    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-    options.good_fit =
-        std::min(options.good_fit, options.good_fit_relative * sorted[sorted.size() / 2]);
+    options.good_fit = std::min(options.good_fit, options.good_fit_relative * Median(recent_fits));
   }
   CoarseAlignment c = AlignHypotheses(frame, h, options, config.iekf, config.knn);
   recent_fits.push_back(c.fit);

@@ -359,13 +359,7 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   // (de-skew within the sweep; in kPpf a map of scattered points only), which would set it off
   // (docs/decisions.md, "Consistency check"). Beyond the bound and well beyond what the scan
   // alone said on the recent scans.
-  auto median = [](const std::deque<double>& d) {
-    if (d.empty()) return 0.0;
-    std::vector<double> v(d.begin(), d.end());
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return v[v.size() / 2];
-  };
-  const double usual_pos = 3.0 * median(lio_steps_pos);
+  const double usual_pos = 3.0 * Median(lio_steps_pos);
   auto too_far = [&](const PoseProbe& p) {
     const double pos = p.step_pos.norm();
     return pos > co.max_step_pos && pos > usual_pos;
@@ -386,9 +380,7 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
     remember(fit, probe);
     return rep;
   }
-  std::vector<double> sorted(lio_fits.begin(), lio_fits.end());
-  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-  const double baseline = sorted[sorted.size() / 2];
+  const double baseline = Median(lio_fits);
   const bool poor_fit = fit < co.fit_ratio * baseline;
   if (!poor_fit && !too_far(probe)) {
     remember(fit, probe);

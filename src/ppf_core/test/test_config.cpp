@@ -1,5 +1,6 @@
 // YAML config: missing keys keep defaults, unknown keys warn, wrong types fail with the key name,
-// and every preset in config/ loads cleanly.
+// every preset in config/ loads cleanly, reference.yaml holds every key with its default, and
+// basic.yaml holds a few of them, documented as there.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -303,6 +304,140 @@ TEST(ReferenceFile, PresetsDifferOnlyInTheirSensorKeys) {
     }
     EXPECT_EQ(diffs, want) << name;
   }
+}
+
+
+// --- the basic file: config/basic.yaml, the few keys a user sets, documented as in the reference --
+
+// What a key's comment says it is: the first clause of its comment (the one on its line, or else
+// the first line of the comment block right above it), up to the first ';', ',', ':' or ". ".
+// In both files that clause is the unit ("m", "rad/s/sqrt(Hz)") or the choices ("auto | lio |
+// none"), so equal clauses mean the same documented meaning.
+std::string FirstClause(const std::string& comment) {
+  const size_t begin = comment.find_first_not_of("# ");
+  if (begin == std::string::npos) return "";
+  size_t end = comment.find_first_of(";,:", begin);
+  const size_t period = comment.find(". ", begin);
+  if (period < end) end = period;
+  std::string clause = comment.substr(begin, end == std::string::npos ? end : end - begin);
+  while (!clause.empty() && (clause.back() == ' ' || clause.back() == '.')) clause.pop_back();
+  return clause;
+}
+
+// The keys of the loader's table that `text` sets, each with FirstClause of its comment; any other
+// key path (not a section of the table, nor inside a key such as extrinsic.T_imu_lidar) goes to
+// *unknown.
+std::map<std::string, std::string> DocumentedKeys(const std::string& text,
+                                                  std::vector<std::string>* unknown) {
+  Config c;
+  const std::vector<std::string> keys = CoreConfigTable(&c).Keys();
+  const auto starts_with = [](const std::string& s, const std::string& prefix) {
+    return s.compare(0, prefix.size(), prefix) == 0;
+  };
+  std::map<std::string, std::string> found;
+  std::istringstream in(text);
+  std::vector<std::pair<size_t, std::string>> path;  // (indent, name) of the enclosing sections
+  std::vector<std::string> block;                     // comment lines right above this line
+  std::string line;
+  while (std::getline(in, line)) {
+    const size_t indent = line.find_first_not_of(' ');
+    if (indent == std::string::npos) {
+      block.clear();
+      continue;
+    }
+    if (line[indent] == '#') {
+      block.push_back(line.substr(indent));
+      continue;
+    }
+    const size_t colon = line.find(':');
+    if (line[indent] != '-' && colon != std::string::npos &&
+        line.find_first_of(" [", indent) > colon) {
+      while (!path.empty() && path.back().first >= indent) path.pop_back();
+      path.emplace_back(indent, line.substr(indent, colon - indent));
+      std::string key;
+      for (const auto& [i, name] : path) key += (key.empty() ? "" : ".") + name;
+      const size_t hash = line.find('#', colon);
+      if (std::find(keys.begin(), keys.end(), key) != keys.end()) {
+        found[key] = FirstClause(hash != std::string::npos ? line.substr(hash)
+                                 : block.empty()           ? std::string()
+                                                           : block.front());
+      } else if (std::none_of(keys.begin(), keys.end(), [&](const std::string& k) {
+                   return starts_with(key, k + ".") || starts_with(k, key + ".");
+                 })) {
+        unknown->push_back(key);
+      }
+    }
+    block.clear();
+  }
+  return found;
+}
+
+// "key: reason" lines for every key of `basic` that the reference does not hold or documents with
+// another unit or choices (empty = a faithful subset of the reference).
+std::vector<std::string> BasicFileProblems(const std::string& basic, const std::string& reference) {
+  std::vector<std::string> problems, unknown;
+  const std::map<std::string, std::string> ref = DocumentedKeys(reference, &unknown);
+  for (const std::string& key : unknown) problems.push_back(key + ": unknown in reference.yaml");
+  unknown.clear();
+  for (const auto& [key, meaning] : DocumentedKeys(basic, &unknown)) {
+    const auto it = ref.find(key);
+    if (it == ref.end()) {
+      problems.push_back(key + ": not in reference.yaml");
+    } else if (meaning != it->second) {
+      problems.push_back(key + ": '" + meaning + "' here, '" + it->second + "' in reference.yaml");
+    }
+  }
+  for (const std::string& key : unknown) problems.push_back(key + ": not a key of the loader");
+  return problems;
+}
+
+TEST(BasicFile, LoadsWithoutWarningsToTheDefaults) {
+  const std::string path = std::string(PPF_CONFIG_DIR) + "/basic.yaml";
+  ASSERT_FALSE(ReadText(path).empty()) << "config/basic.yaml not found at " << PPF_CONFIG_DIR;
+  Config basic, defaults;
+  const ConfigLoadReport r = LoadConfigYaml(path, &basic);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_TRUE(r.warnings.empty()) << r.warnings.front();
+  const ConfigTable got = CoreConfigTable(&basic), want = CoreConfigTable(&defaults);
+  for (const std::string& key : want.Keys()) {
+    EXPECT_EQ(got.ShowValue(key), want.ShowValue(key)) << key;
+  }
+}
+
+TEST(BasicFile, HoldsAFewReferenceKeysEachWithTheReferenceMeaning) {
+  const std::string basic = ReadText(std::string(PPF_CONFIG_DIR) + "/basic.yaml");
+  const std::string reference = ReadText(std::string(PPF_CONFIG_DIR) + "/reference.yaml");
+  ASSERT_FALSE(basic.empty());
+  ASSERT_FALSE(reference.empty());
+  std::vector<std::string> unknown;
+  const std::map<std::string, std::string> keys = DocumentedKeys(basic, &unknown);
+  EXPECT_GE(keys.size(), 8u);
+  EXPECT_LE(keys.size(), 15u);  // the basic file, not a second reference
+  for (const auto& [key, meaning] : keys) EXPECT_FALSE(meaning.empty()) << key << " undocumented";
+  for (const char* key : {"mode", "extrinsic.T_imu_lidar", "time.field", "imu.mode",
+                          "preprocess.scan_voxel_size", "map.resolution", "map.radius",
+                          "imu.gyro_noise", "imu.acc_noise", "ppf.beams"}) {
+    EXPECT_EQ(keys.count(key), 1u) << key;
+  }
+  std::string all;
+  const std::vector<std::string> problems = BasicFileProblems(basic, reference);
+  for (const std::string& p : problems) all += "\n  " + p;
+  EXPECT_TRUE(problems.empty()) << "config/basic.yaml and config/reference.yaml disagree:" << all;
+}
+
+// The check above must catch a key documented with another unit and a key the loader lacks.
+TEST(BasicFile, ACheckThatCatchesAnotherUnitOrAnUnknownKey) {
+  const std::string basic = ReadText(std::string(PPF_CONFIG_DIR) + "/basic.yaml");
+  const std::string reference = ReadText(std::string(PPF_CONFIG_DIR) + "/reference.yaml");
+  ASSERT_FALSE(basic.empty());
+  std::string changed = basic;
+  const size_t at = changed.find("radius: 150.0           # m;");
+  ASSERT_NE(at, std::string::npos);
+  changed.replace(changed.find("# m;", at), 4, "# s;");
+  changed += "map_radius: 150.0  # m\n";
+  EXPECT_EQ(BasicFileProblems(changed, reference),
+            (std::vector<std::string>{"map.radius: 's' here, 'm' in reference.yaml",
+                                      "map_radius: not a key of the loader"}));
 }
 
 }  // namespace

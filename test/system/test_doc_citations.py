@@ -1,10 +1,11 @@
 """Every section of docs/ that a comment in src/ cites must exist: a comment citing
 `docs/<file>.md, "<Section>"` (or `docs/<file>.md "<Section>"`, the quotes may follow on the next
-comment line) names a file in the repository's docs/ and a heading of that file, exactly as
+comment line; a list `docs/<file>.md, "<A>", "<B>" and "<C>"` cites each) names a file in the repository's docs/ and a heading of that file, exactly as
 written after its #'s. A renamed or removed section otherwise leaves the code pointing at
 nothing. Cheap: reads the sources, builds nothing."""
 import os
 import re
+import tempfile
 import unittest
 
 # PPF_REPO_ROOT: the repository to check (another copy shows that this test fails on a broken
@@ -13,7 +14,9 @@ ROOT = os.environ.get("PPF_REPO_ROOT", os.path.join(os.path.dirname(__file__), "
 
 C_LIKE = (".cpp", ".hpp", ".h", ".cc", ".c", ".ipp")
 HASH_COMMENTED = (".py", ".cmake", ".sh")
-CITATION = re.compile(r'(docs/[\w./-]+\.md),?\s*"([^"]+)"')
+# A file, then one section in quotes or a list of them ("A", "B" and "C"): each is a citation.
+CITATION = re.compile(r'(docs/[\w./-]+\.md),?\s*("[^"]+"(?:\s*(?:,|and|or|,\s*and)\s*"[^"]+")*)')
+SECTION = re.compile(r'"([^"]+)"')
 HEADING = re.compile(r"^#+\s+(.*?)\s*#*\s*$")
 
 
@@ -60,8 +63,9 @@ def citations(root):
                 text = f.read()
             for line, block in comment_blocks(text, marker):
                 for match in CITATION.finditer(block):
-                    found.append((os.path.relpath(path, root), line, match.group(1),
-                                  match.group(2)))
+                    for section in SECTION.findall(match.group(2)):
+                        found.append((os.path.relpath(path, root), line, match.group(1),
+                                      section))
     return found
 
 
@@ -95,6 +99,16 @@ class DocCitationsTest(unittest.TestCase):
             elif section not in cache[doc]:
                 missing.append('%s:%d: %s has no section "%s"' % (source, line, doc, section))
         self.assertEqual(missing, [], "\n" + "\n".join(missing))
+
+    def test_a_list_cites_each_of_its_sections(self):
+        with tempfile.TemporaryDirectory() as root:
+            os.makedirs(os.path.join(root, "src"))
+            os.makedirs(os.path.join(root, "docs"))
+            with open(os.path.join(root, "src", "a.hpp"), "w", encoding="utf-8") as f:
+                f.write('// Behaviour: docs/b.md, "One", "Two" and\n// "Three". Not "Four".\nint a;\n')
+            self.assertEqual(
+                [(doc, section) for _, _, doc, section in citations(root)],
+                [("docs/b.md", "One"), ("docs/b.md", "Two"), ("docs/b.md", "Three")])
 
 
 if __name__ == "__main__":

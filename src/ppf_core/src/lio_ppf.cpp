@@ -568,9 +568,9 @@ bool LioPpf::Impl::DecideImuMode(bool flush) {
   return true;
 }
 
-// Late IMU (lio_ppf.hpp): the first valid sample after imu.mode auto decided LiDAR-only. The
-// scans keep being registered LiDAR-only in the same map while the moving-start window (of
-// scans after this sample) estimates gravity, velocity and gyro bias; the static
+// Late IMU (docs/behaviour.md, "Late IMU"): the first valid sample after imu.mode auto decided
+// LiDAR-only. The scans keep being registered LiDAR-only in the same map while the moving-start
+// window (of scans after this sample) estimates gravity, velocity and gyro bias; the static
 // initialization is not used, it would start a new world.
 void LioPpf::Impl::StartLateImu(const ImuSample& s) {
   lidar_only = false;

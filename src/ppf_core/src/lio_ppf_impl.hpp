@@ -199,8 +199,9 @@ struct LioPpf::Impl {
   std::deque<double> lio_steps_pos;  // ... and the scan-alone steps' translation (m)
   bool contradicted = false;       // this scan's pose fits the map poorly and no guess did better
   size_t ignored_imu = 0;
-  // IMU loss (lio_ppf.hpp): LIO running, but scans are registered LiDAR-only until IMU samples
-  // are back and cover the next scan; then propagation re-anchors at the last LiDAR-only pose.
+  // IMU loss (docs/behaviour.md, "IMU loss"): LIO running, but scans are registered LiDAR-only
+  // until IMU samples are back and cover the next scan; then propagation re-anchors at the last
+  // LiDAR-only pose.
   bool imu_lost = false;
   bool fallback_scan = false;    // the scan in ProcessOne is one of those
   bool fallback_seeded = false;  // the motion model holds the filter's pose and twist
@@ -232,10 +233,10 @@ struct LioPpf::Impl {
   InputStats input_stats;     // totals
   InputStats input_reported;  // totals when the last result was handed out
   double imu_gap_longest_since_result_s = 0.0;
-  // Clock offset (lio_ppf.hpp): the IMU stream live (valid samples arriving between scans) but
-  // its newest sample kClockOffsetS or more behind every scan's end for kClockOffsetScans scans.
-  // Meanwhile the samples are not used and the scans are registered LiDAR-only; the same count
-  // of scans in agreement ends it.
+  // Clock offset (docs/behaviour.md, "Clock offset"): the IMU stream live (valid samples
+  // arriving between scans) but its newest sample kClockOffsetS or more behind every scan's end
+  // for kClockOffsetScans scans. Meanwhile the samples are not used and the scans are registered
+  // LiDAR-only; the same count of scans in agreement ends it.
   static constexpr double kClockOffsetS = 1.0;
   static constexpr int kClockOffsetScans = 10;
   bool clock_offset = false;

@@ -49,7 +49,8 @@ void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
   for (int i = 0; i < 3; ++i) os << ',' << r.gyro_bias(i);
   for (int i = 0; i < 3; ++i) os << ',' << r.acc_bias(i);
   for (int i = 0; i < 3; ++i) os << ',' << r.gravity_map(i);
-  // LiDAR-only (lio_ppf.hpp): how well the scan fit the map and which guess won.
+  // LiDAR-only (docs/behaviour.md, "LiDAR-only"): how well the scan fit the map and which guess
+  // won.
   os << ',' << r.skeleton_planes.size() << std::setprecision(3) << ',' << r.fit << ','
      << Quoted(r.motion_guess, '"') << ',' << r.guesses_tried << ',' << t.guesses;
   // How far the LiDAR moved the prediction, and whether it overruled it (Config::consistency).

@@ -219,7 +219,7 @@ struct KnnOptions {
 // --- the core ------------------------------------------------------------------------------------
 enum class Mode { kKnn, kPpf };
 
-// Where the prediction comes from (lio_ppf.hpp, "LiDAR-only"). kLio: the IMU (static
+// Where the prediction comes from (docs/behaviour.md, "LiDAR-only"). kLio: the IMU (static
 // initialization first). kNone: no IMU; a constant-velocity model and several registration
 // guesses (hypothesis_search.hpp); IMU samples are ignored. kAuto: kLio as soon as an IMU sample
 // arrives; kNone if scans spanning imu_auto_wait_s (or the whole input, at flush) came without one.
@@ -255,13 +255,13 @@ struct Config {
   // in one WARN line (gaps beyond max_imu_gap_s in the bridge / IMU-loss line): even a gap the
   // propagation integrates across unnoticed says the driver or the link drops samples.
   double imu_max_gap_warn_s = 0.1;
-  // IMU loss (lio_ppf.hpp): a scan whose end lies more than this beyond the last IMU sample,
-  // while later scans show the stream has stalled (max_imu_gap_s), is registered LiDAR-only
-  // (constant-velocity model seeded from the filter's velocity and turn rate, the guesses of
-  // hypothesis_search.hpp), keeping map, gravity and biases; LIO resumes, re-anchored, when IMU
-  // samples are back. Scans closer to the last sample are propagated with it held (extrapolated):
-  // a held acceleration and turn rate are only right for a moment, and on the simulated drives
-  // the LiDAR-only registration was the more accurate from a quarter second on
+  // IMU loss (docs/behaviour.md, "IMU loss"): a scan whose end lies more than this beyond the
+  // last IMU sample, while later scans show the stream has stalled (max_imu_gap_s), is registered
+  // LiDAR-only (constant-velocity model seeded from the filter's velocity and turn rate, the
+  // guesses of hypothesis_search.hpp), keeping map, gravity and biases; LIO resumes, re-anchored,
+  // when IMU samples are back. Scans closer to the last sample are propagated with it held
+  // (extrapolated): a held acceleration and turn rate are only right for a moment, and on the
+  // simulated drives the LiDAR-only registration was the more accurate from a quarter second on
   // (docs/decisions.md, "IMU loss timeout"). Shorter values gain nothing: the scan interval is
   // 0.1 s.
   double imu_loss_timeout_s = 0.25;

@@ -3,7 +3,8 @@
 //
 // Usage:
 //   ppf::Config config;                  // or ppf::LoadConfigYaml("config/hdl64.yaml", ...)
-//                                        // (config.hpp; every key in config/reference.yaml)
+//                                        // (config.hpp; config/basic.yaml, then every key in
+//                                        // config/reference.yaml)
 //   ppf::LioPpf lio(config);
 //   lio.AddImu(imu);                     // any order relative to scans, each stream in time order
 //   lio.AddScan(cloud);                  // decoded at once: the view may be released afterwards
@@ -22,78 +23,11 @@
 //               points and, in kPpf, the skeleton rows (lio/residual_provider.hpp)
 //   map insert  points labelled kScattered ("map points") go into the kNN VoxelMap
 //
-// Initialization (imu_init.hpp): needs Config::init.duration_s (1 s) of static IMU data; scans
-// before that return Status::kInitializing. Motion during that window restarts the collection.
-// The first scan after initialization builds the map (Status::kOk, reason "map initialized").
-// Moving start (Config::init.moving_start, on by default; moving_start.hpp): while the IMU is
-// judged, the scans are registered LiDAR-only (as below, their map in the first one's LiDAR
-// frame; the rotation predicted and de-skewed from the gyro), still Status::kInitializing. If the
-// IMU shows rest, that map is dropped and the static path above runs. If its window is refused
-// for motion, the poses of init.moving_start_window_s of scans (after 5 warm-up scans) and the
-// preintegrated IMU give gravity, velocity and gyro bias, and the filter continues as LIO from
-// the last of them, which is the first kOk result (reason "moving-start initialization: ...";
-// one INFO log line with the gravity estimate). The map frame is then the first registered
-// scan's LiDAR frame (T_world_map levels it). An estimate that fails its checks, or a scan that
-// does not register, starts the window again. Known gap: a start at constant velocity in a
-// straight line without vibration looks like rest to an IMU and takes the static path (with
-// zero velocity).
-//
-// LiDAR-only (Config::imu_mode none, or kAuto when scans spanning imu_auto_wait_s came without an
-// IMU sample; ppf_offline decides at once from a bag without an IMU topic): no static
-// initialization, the first scan builds the map. The prediction is a constant-velocity model of
-// the last two registered poses (motion_model.hpp); points with their own time are de-skewed from
-// it. Each scan is first aligned coarsely from several guesses (the model, no motion, the model's
-// turn scaled or turned further; hypothesis_search.hpp) and the best-fitting one becomes the
-// prediction of the usual update and of the skeleton tracker. Gravity is unobservable: the world
-// frame is the first scan's LiDAR frame (z is the LiDAR's z then, not "up"), T_world_map stays
-// the identity and velocity, biases and gravity are not estimated (velocity_world and
-// angular_velocity report the model's). ScanResult::fit says how well the scan fit the map; a fit
-// below lidar_only.min_fit is Status::kDegenerate with the reason. imu.mode none is decided once
-// per object; ScanResult::lidar_only marks each such scan.
-//
-// Late IMU (kAuto decided LiDAR-only, then IMU samples arrive: a driver that started late): the
-// scans go on being registered LiDAR-only, with the gyro predicting the turn, while the
-// moving-start estimate above runs on their poses in the LiDAR-only map; once it passes, the IMU
-// predicts from that scan on (ScanResult::lio_started_late, one INFO line). No reset and no jump:
-// the map and the world stay the LiDAR-only start's, so z is not "up" in it (T_world_map stays
-// the identity; gravity_map says where down is). For a gravity-aligned world when the IMU may
-// start late, set imu.mode lio (scans then wait for the IMU's static initialization).
-//
-// IMU loss (LIO running): when the IMU stream stops, or delivers only invalid samples, while the
-// scans go on, a scan ending more than Config::imu_loss_timeout_s after the last IMU sample (the
-// later scans showing the stream has stalled) is registered LiDAR-only as above: the
-// constant-velocity model starts from the filter's own velocity and turn rate, the same guesses
-// are aligned, and the map, gravity and biases are kept (one WARN "IMU lost ...: continuing
-// LiDAR-only", ScanResult::imu_lost on each such scan). Scans closer to the last sample are
-// propagated with it held, as before. When IMU samples are back, the first scan they cover
-// resumes LIO: propagation starts from the last LiDAR-only pose with the velocity of the
-// LiDAR-only pose history, biases and gravity with their covariance from before the loss (no
-// reset, no jump; one INFO line, and ScanResult::imu_gap_s on that scan).
-//
-// Time glitches: an IMU sample or scan older than the previous one (bag loop) resets the filter
-// and the map (Status::kReset with the reason) and initialization starts over. An IMU gap that
-// exceeds max_imu_gap_s without scans needing the fallback meanwhile (both streams silent: a
-// network link down for a moment, a stalled driver) is bridged up to max_imu_gap_bridge_s
-// (integrated across, uncertainty widened); after a longer one the first scan is registered
-// LiDAR-only and LIO re-anchors, as after an IMU loss. A reset would need a static start again,
-// which a moving robot never gives, so its odometry would not come back.
-// Single bad values never reset or stall: a point time outside the plausible sweep window (more
-// than 0.01 s before a scan-start header stamp, or more than 2 x time.scan_period after it;
-// time_field.hpp) is dropped and counted (ScanResult::points_bad_time) and does not move the
-// scan's time span; a scan that loses most of its points so is skipped (kRejected, nothing
-// changed). An IMU sample with the newest sample's stamp is dropped if its values are the same
-// (InputStats::imu_duplicates); with other values it is a conflict, decided by the next sample:
-// the copy consistent with the samples on either side is kept, or none (never the first by
-// arrival; ScanResult::imu_conflicts, one WARN). Every gap between valid IMU samples longer than
-// imu.max_gap_warn (0.1 s) is counted (ScanResult::imu_gaps, imu_gap_longest_s) and named in one
-// WARN. input_stats() has the totals.
-// Clock offset: while IMU samples keep arriving between scans but the newest is a second or more
-// behind every scan's end (10 scans in a row), the IMU's clock runs behind the LiDAR's: one WARN
-// names the offset, the samples are not used, and the scans are registered LiDAR-only (the
-// IMU-loss fallback if LIO ran, else as without an IMU; ScanResult::imu_clock_offset_s). When
-// the clocks agree again for as many scans, the IMU is taken up (LIO resumes, or starts as a late
-// IMU), without a reset. An IMU ahead is not judged: a core lagging behind its input sees that.
-// Malformed clouds return Status::kRejected and change nothing.
+// Behaviour, one section per topic: docs/behaviour.md, "Initialization", "Moving start",
+// "LiDAR-only", "Late IMU", "IMU loss", "Time glitches", "Single bad values", "Clock offset".
+// Every scan gets a ScanResult with a status and a reason; of the input, only time running
+// backwards resets the filter and the map (Status::kReset). Single bad values are dropped and
+// counted (InputStats).
 #pragma once
 
 #include <cstddef>
@@ -155,42 +89,19 @@ struct StageTimings {
 };
 
 struct ScanResult {
+  // --- The scan and its outcome -----------------------------------------------------------------
   // What LioPpf::AddScan returned for the scan this result belongs to. 0 for a notice that
   // belongs to no scan: a kReset the IMU stream caused (its time going back), reported before
-  // the next scan's result. A gap too long to bridge resets nothing (see the class comment).
+  // the next scan's result. A gap too long to bridge resets nothing (docs/behaviour.md,
+  // "Time glitches").
   uint64_t input_id = 0;
   double stamp_s = 0.0;        // time of the pose: the scan end
   double scan_begin_s = 0.0;   // earliest point time
   Status status = Status::kInitializing;
   std::string reason;          // human readable: why not kOk, notes (e.g. time field fallback)
   bool pose_valid = false;     // false for kInitializing / kRejected / kReset
-  double imu_gap_s = 0.0;      // > 0: an IMU gap this long before this scan was bridged
-  // IMU input since the previous result (InputStats has the totals): gaps between valid samples
-  // longer than imu.max_gap_warn and the longest of them, and stamps that came twice with
-  // different values (the copy kept is the one consistent with the samples either side, or
-  // neither: imu_conflicts_unresolved).
-  size_t imu_gaps = 0;
-  double imu_gap_longest_s = 0.0;
-  size_t imu_conflicts = 0;
-  size_t imu_conflicts_unresolved = 0;
-  // != 0: the IMU's clock runs this many seconds behind the LiDAR's (scan end minus the newest
-  // IMU sample, both streams live): the scan was registered LiDAR-only and the IMU is not used
-  // until the clocks agree again (the reason says so; imu_lost is set too once LIO had run).
-  double imu_clock_offset_s = 0.0;
-  // Registered LiDAR-only because the IMU stream is lost mid-run (IMU loss fallback, Config::
-  // imu_loss_timeout_s); the reason says so. The first LIO scan after it has imu_gap_s > 0.
-  bool imu_lost = false;
-  // The first LIO scan after an IMU loss (the reason says "LIO resumed"; imu_gap_s is the gap).
-  bool lio_resumed = false;
-  // Registered without an IMU because none has come (imu.mode none, or auto that decided none),
-  // including the window in which IMU samples that arrived late are judged (the "Late IMU"
-  // paragraph of LioPpf's class comment). Not set for an IMU loss (imu_lost) or a moving start.
-  bool lidar_only = false;
-  // The scan with which the LiDAR-only start became LiDAR-inertial (late IMU): from it on the
-  // IMU predicts, in the same world as before (no jump; its z is not "up", gravity_map says
-  // where down is).
-  bool lio_started_late = false;
 
+  // --- Pose and state ---------------------------------------------------------------------------
   // Poses, velocity, planes and covariances are in the gravity-aligned world: z up as the filter
   // now estimates it, origin and yaw of the IMU at initialization. The map is built in the frame
   // the filter started with ("map": z = the accelerometer's "up" at rest, which carries its
@@ -209,9 +120,35 @@ struct ScanResult {
   StateCov covariance = StateCov::Zero();
   Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();  // [rot, pos]
 
-  StageTimings timings;
-  size_t map_size = 0;            // points in the kNN map after insertion
+  // --- LiDAR-only and the IMU stream: what predicted this scan ----------------------------------
+  // Registered without an IMU because none has come (imu.mode none, or auto that decided none),
+  // including the window in which IMU samples that arrived late are judged (docs/behaviour.md,
+  // "Late IMU"). Not set for an IMU loss (imu_lost) or a moving start.
+  bool lidar_only = false;
+  // The scan with which the LiDAR-only start became LiDAR-inertial (late IMU): from it on the
+  // IMU predicts, in the same world as before (no jump; its z is not "up", gravity_map says
+  // where down is).
+  bool lio_started_late = false;
+  // Registered LiDAR-only because the IMU stream is lost mid-run (IMU loss fallback, Config::
+  // imu_loss_timeout_s); the reason says so. The first LIO scan after it has imu_gap_s > 0.
+  bool imu_lost = false;
+  // The first LIO scan after an IMU loss (the reason says "LIO resumed"; imu_gap_s is the gap).
+  bool lio_resumed = false;
+  double imu_gap_s = 0.0;      // > 0: an IMU gap this long before this scan was bridged
+  // != 0: the IMU's clock runs this many seconds behind the LiDAR's (scan end minus the newest
+  // IMU sample, both streams live): the scan was registered LiDAR-only and the IMU is not used
+  // until the clocks agree again (the reason says so; imu_lost is set too once LIO had run).
+  double imu_clock_offset_s = 0.0;
+  // IMU input since the previous result (InputStats has the totals): gaps between valid samples
+  // longer than imu.max_gap_warn and the longest of them, and stamps that came twice with
+  // different values (the copy kept is the one consistent with the samples either side, or
+  // neither: imu_conflicts_unresolved).
+  size_t imu_gaps = 0;
+  double imu_gap_longest_s = 0.0;
+  size_t imu_conflicts = 0;
+  size_t imu_conflicts_unresolved = 0;
 
+  // --- Counts: points through the stages, residual rows, map ------------------------------------
   size_t input_points = 0;        // width * height
   size_t dropped_nan = 0;
   // Points dropped because their time lies outside the plausible sweep window (time_field.hpp:
@@ -226,28 +163,22 @@ struct ScanResult {
   size_t discarded_points = 0;    // labelled kDiscarded
   size_t knn_residuals = 0;       // rows of the kNN provider (last iteration)
   size_t skeleton_residuals = 0;  // rows of the skeleton provider (last iteration)
-  // kPpf: the skeleton tracker's world-frame skeleton-plane window after this scan. Track
-  // ids are stable for the same physical plane across scans (ppf_msgs/SkeletonPlaneArray).
-  std::vector<SkeletonPlane> skeleton_planes;
+  size_t map_inserted = 0;        // points offered to the map
+  size_t map_size = 0;            // points in the kNN map after insertion
   // kPpf: the skeleton tracker's plane patches (plane_patch_map.hpp), the skeleton
   // points' share of the local map (a patch summarises up to patch_max_points points).
   size_t skeleton_patches = 0;
-  size_t map_inserted = 0;        // points offered to the map
 
-  // Config::output_deskewed_points: the points this scan was registered with (range-filtered,
-  // downsampled, de-skewed to stamp_s), LiDAR frame; T_world_lidar places them in the world.
-  std::vector<Eigen::Vector3f> deskewed_points_lidar;
-  // Same switch, same order: each point's PPF label (all kScattered in kKnn mode and in the scan
-  // that initializes the map), so a plot can show the skeleton points next to their planes.
-  std::vector<PointLabel> deskewed_point_labels;
+  // --- Timings ----------------------------------------------------------------------------------
+  StageTimings timings;
 
+  // --- Diagnostics: how well the scan fit, how far the LiDAR moved the prediction, the update ---
   // LiDAR-only: the share of scan points on a map plane after the coarse alignment
   // (hypothesis_search.hpp), the guess it came from and how many guesses were aligned. LIO with
   // consistency.check: the same share at the posterior (ScoreFit), and the guesses of a search.
   double fit = 0.0;
   std::string motion_guess;
   int guesses_tried = 0;
-
   // How far the LiDAR moved the prediction (IMU-propagated, or the LiDAR-only guess) in this
   // scan: rotation in degrees, translation in metres, between the prior and the posterior.
   double correction_rot_deg = 0.0;
@@ -260,11 +191,21 @@ struct ScanResult {
   // move the posterior; large values with overruled false say the map and the IMU disagree.
   double disagreement_rot_deg = 0.0;
   double disagreement_pos_m = 0.0;
-
   int iterations = 0;
   bool converged = false;
   Eigen::Vector3d eig_rotation = Eigen::Vector3d::Zero();     // J^T J, ascending
   Eigen::Vector3d eig_translation = Eigen::Vector3d::Zero();  // J^T J, ascending
+
+  // --- Planes and points of this scan, for display ----------------------------------------------
+  // kPpf: the skeleton tracker's world-frame skeleton-plane window after this scan. Track
+  // ids are stable for the same physical plane across scans (ppf_msgs/SkeletonPlaneArray).
+  std::vector<SkeletonPlane> skeleton_planes;
+  // Config::output_deskewed_points: the points this scan was registered with (range-filtered,
+  // downsampled, de-skewed to stamp_s), LiDAR frame; T_world_lidar places them in the world.
+  std::vector<Eigen::Vector3f> deskewed_points_lidar;
+  // Same switch, same order: each point's PPF label (all kScattered in kKnn mode and in the scan
+  // that initializes the map), so a plot can show the skeleton points next to their planes.
+  std::vector<PointLabel> deskewed_point_labels;
 };
 
 class LioPpf {

@@ -25,7 +25,8 @@ class ConstantVelocityModel {
   // pose replaces it and the twist is kept).
   void Update(const Eigen::Isometry3d& T_world_body, double t);
   // Starts from a pose and a known body-frame twist (per second) instead of two poses: the LIO
-  // filter's own velocity and turn rate when its IMU stream is lost (lio_ppf.hpp, IMU loss).
+  // filter's own velocity and turn rate when its IMU stream is lost (docs/behaviour.md,
+  // "IMU loss").
   void Seed(const Eigen::Isometry3d& T_world_body, double t, const Eigen::Vector3d& omega_body,
             const Eigen::Vector3d& v_body);
 

@@ -1,7 +1,7 @@
 // Moving-start initialization: gravity, velocity and gyro bias from LiDAR poses and the IMU.
 //
 // When the IMU never shows a window at rest (ImuInitializer refuses it for motion), the facade
-// registers the first scans without the IMU (the LiDAR-only path of lio_ppf.hpp) and hands the
+// registers the first scans without the IMU (docs/behaviour.md, "Moving start") and hands the
 // IMU poses of those scans, in the frame of the map they built, to EstimateMovingStart. With the
 // IMU preintegrated from the first pose's time t0 to each later pose's time tj (dt = tj - t0):
 //

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "ppf_sim/scene_distance.hpp"
 #include "ppf_sim/world.hpp"
 #include "ppf_tools/map_export.hpp"
 #include "ppf_trajectory/trajectory_io.hpp"
@@ -28,47 +29,6 @@ namespace fs = std::filesystem;
 namespace {
 
 using ppf::tools::MapPoint;
-
-// Distance from x to the surface of one primitive (0 inside a blob: foliage returns come from
-// within it). Exact for quads, boxes and cylinders; for a blob an upper bound (along the ray
-// from its centre).
-double DistanceToPrimitive(const ppf::sim::Primitive& p, const Eigen::Vector3d& x) {
-  using ppf::sim::PrimKind;
-  const Eigen::Vector3d d = x - p.c;
-  switch (p.kind) {
-    case PrimKind::kQuad: {
-      const double a = std::max(std::abs(d.dot(p.u)) - p.half.x(), 0.0);
-      const double b = std::max(std::abs(d.dot(p.v)) - p.half.y(), 0.0);
-      const double h = d.dot(p.n);
-      return std::sqrt(a * a + b * b + h * h);
-    }
-    case PrimKind::kBox: {
-      const Eigen::Vector3d local(d.dot(p.u), d.dot(p.v), d.z());
-      const Eigen::Vector3d q = local.cwiseAbs() - p.half;
-      return q.maxCoeff() > 0.0 ? q.cwiseMax(0.0).norm() : -q.maxCoeff();
-    }
-    case PrimKind::kCylinder: {
-      const Eigen::Vector2d q(d.head<2>().norm() - p.half.x(), std::abs(d.z()) - p.half.z());
-      return q.maxCoeff() > 0.0 ? q.cwiseMax(0.0).norm() : -q.maxCoeff();
-    }
-    case PrimKind::kBlob: {
-      const double k = d.cwiseQuotient(p.half).norm();
-      return k <= 1.0 ? 0.0 : d.norm() * (1.0 - 1.0 / k);
-    }
-  }
-  return std::numeric_limits<double>::infinity();
-}
-
-// Distance to the nearest surface of the scene; the ground counts with its vertical distance
-// (an upper bound of the true one).
-double DistanceToScene(const ppf::sim::Scene& scene, const Eigen::Vector3d& x) {
-  double best = std::numeric_limits<double>::infinity();
-  if (scene.has_ground() && scene.ground().Contains(x.x(), x.y())) {
-    best = std::abs(x.z() - scene.GroundHeight(x.x(), x.y()));
-  }
-  for (const auto& p : scene.primitives()) best = std::min(best, DistanceToPrimitive(p, x));
-  return best;
-}
 
 double Median(std::vector<double> v) {
   if (v.empty()) return std::numeric_limits<double>::infinity();
@@ -100,7 +60,7 @@ double MedianDistance(const pcl::PointCloud<pcl::PointXYZI>& cloud, const ppf::s
   std::vector<double> dist;
   dist.reserve(cloud.size());
   for (const auto& p : cloud) {
-    dist.push_back(DistanceToScene(scene, T_sim_est * Eigen::Vector3d(p.x, p.y, p.z)));
+    dist.push_back(ppf::sim::DistanceToScene(scene, T_sim_est * Eigen::Vector3d(p.x, p.y, p.z)));
   }
   return Median(dist);
 }

@@ -33,7 +33,7 @@
 #include "ppf_core/ppf/plane_prefitter.hpp"
 #include "ppf_core/ppf_config.hpp"
 #include "ppf_core/ppf/skeleton_window.hpp"
-#include "ppf_core/lio/voxel_map.hpp"
+#include "ppf_core/lio/voxel_downsample.hpp"
 #include "ppf_sim/lidar_model.hpp"
 #include "ppf_sim/scan_generator.hpp"
 #include "ppf_sim/world.hpp"

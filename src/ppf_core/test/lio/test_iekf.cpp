@@ -9,6 +9,7 @@
 #include "ppf_core/lio/iekf.hpp"
 #include "ppf_core/lio/knn_residual.hpp"
 #include "ppf_core/lio/so3.hpp"
+#include "ppf_core/lio/voxel_downsample.hpp"
 #include "ppf_core/lio/voxel_map.hpp"
 #include "synthetic.hpp"
 

@@ -13,7 +13,7 @@
 #include "ppf_core/lio/deskew.hpp"
 #include "ppf_core/lio/imu_propagation.hpp"
 #include "ppf_core/lio/preprocess.hpp"
-#include "ppf_core/lio/voxel_map.hpp"
+#include "ppf_core/lio/voxel_downsample.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {

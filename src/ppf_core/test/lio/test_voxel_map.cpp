@@ -8,6 +8,7 @@
 #include <random>
 #include <tuple>
 
+#include "ppf_core/lio/voxel_downsample.hpp"
 #include "ppf_core/lio/voxel_map.hpp"
 
 namespace ppf {

@@ -17,6 +17,9 @@
 #include <vector>
 
 #include "ppf_core/lio/time_field.hpp"
+// The plain voxel grid without point times (tools, and the reference VoxelGridDownsampler is
+// tested against).
+#include "ppf_core/lio/voxel_downsample.hpp"
 
 namespace ppf {
 

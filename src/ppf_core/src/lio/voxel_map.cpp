@@ -1,0 +1,169 @@
+#include "ppf_core/lio/voxel_map.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <utility>
+
+namespace ppf {
+
+VoxelMap::VoxelMap(const VoxelMapOptions& options) : options_(options) {
+  if (!(options_.resolution > 1e-3)) options_.resolution = 1e-3;  // guards tiny/NaN voxel sizes
+  if (options_.max_voxels == 0) options_.max_voxels = 1;
+  if (options_.max_points_per_voxel == 0) options_.max_points_per_voxel = 1;
+  inv_resolution_ = 1.0 / options_.resolution;
+  BuildOffsets();
+}
+
+void VoxelMap::Insert(const Point& p) {
+  if (!p.allFinite()) return;
+  const VoxelKey key = ToVoxelKey(p, inv_resolution_);
+  const VoxelIt* found = index_.Find(key);
+  VoxelIt it;
+  if (found == nullptr) {
+    lru_.push_front(Voxel{key, {}});
+    lru_.front().points.reserve(std::min<size_t>(options_.max_points_per_voxel, 8));
+    it = lru_.begin();
+    index_.Insert(key, it);
+    if (index_.size() > options_.max_voxels) EvictOldest();
+  } else {
+    it = *found;
+    if (it != lru_.begin()) lru_.splice(lru_.begin(), lru_, it);  // O(1), iterators stay valid
+  }
+  std::vector<Point>& pts = it->points;
+  if (pts.size() >= options_.max_points_per_voxel) return;
+  const float min_d2 =
+      static_cast<float>(options_.min_point_distance * options_.min_point_distance);
+  if (min_d2 > 0.f) {
+    for (const Point& q : pts) {
+      if ((q - p).squaredNorm() < min_d2) return;
+    }
+  }
+  pts.push_back(p);
+  ++num_points_;
+}
+
+void VoxelMap::Insert(const std::vector<Point>& points) {
+  for (const Point& p : points) Insert(p);
+}
+
+size_t VoxelMap::GetClosest(const Point& query, size_t k, double max_range,
+                            std::vector<Point>* out) const {
+  out->clear();
+  if (k == 0 || !query.allFinite()) return 0;
+  const float max_d2 = static_cast<float>(max_range * max_range);
+  const VoxelKey c = ToVoxelKey(query, inv_resolution_);
+  // k is tiny (5) in every use: an insertion-sorted array on the stack keeps the k best so far.
+  // A per-query candidate vector and a partial sort cost a heap allocation and a heap sort per
+  // query, the bulk of the kNN residual stage (docs/decisions.md, "kNN search on the stack").
+  if (k <= kMaxStackK) {
+    float best_d2[kMaxStackK];
+    Point best[kMaxStackK];
+    size_t n = 0;
+    // The query's position inside its voxel, in voxel units: a neighbour voxel's nearest face
+    // lies (1 - f) or f away along each axis where it differs.
+    const Eigen::Vector3d f =
+        query.cast<double>() * inv_resolution_ - Eigen::Vector3d(c.x, c.y, c.z);
+    for (const VoxelKey& o : offsets_) {
+      // A neighbour voxel that lies wholly beyond the search radius, or beyond the k-th best
+      // distance once k points are held, cannot change the result: its hash lookup (the cost of
+      // a query) is skipped. The bound is a lower bound with a margin for the rounding of the
+      // point distances and of the voxel keys, so no point it could hold is ever left out.
+      if (o.x != 0 || o.y != 0 || o.z != 0) {
+        const double limit = n == k ? std::min<double>(best_d2[k - 1], max_d2) : max_d2;
+        if (NeighbourLowerBound2(f, o) > limit * (1.0 + 1e-4)) continue;
+      }
+      const VoxelIt* it = index_.Find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
+      if (it == nullptr) continue;
+      for (const Point& p : (*it)->points) {
+        const float d2 = (p - query).squaredNorm();
+        if (!(d2 <= max_d2)) continue;
+        if (n == k && !(d2 < best_d2[k - 1])) continue;
+        size_t j = n < k ? n++ : k - 1;
+        for (; j > 0 && best_d2[j - 1] > d2; --j) {
+          best_d2[j] = best_d2[j - 1];
+          best[j] = best[j - 1];
+        }
+        best_d2[j] = d2;
+        best[j] = p;
+      }
+    }
+    out->assign(best, best + n);
+    return n;
+  }
+  std::vector<std::pair<float, Point>> cand;
+  cand.reserve(64);
+  for (const VoxelKey& o : offsets_) {
+    const VoxelIt* it = index_.Find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
+    if (it == nullptr) continue;
+    for (const Point& p : (*it)->points) {
+      const float d2 = (p - query).squaredNorm();
+      if (d2 <= max_d2) cand.emplace_back(d2, p);
+    }
+  }
+  const size_t n = std::min(k, cand.size());
+  std::partial_sort(cand.begin(), cand.begin() + static_cast<std::ptrdiff_t>(n), cand.end(),
+                    [](const auto& a, const auto& b) { return a.first < b.first; });
+  out->reserve(n);
+  for (size_t i = 0; i < n; ++i) out->push_back(cand[i].second);
+  return n;
+}
+
+void VoxelMap::RemoveFarFrom(const Eigen::Vector3d& center, double radius) {
+  const double r2 = radius * radius;
+  for (auto it = lru_.begin(); it != lru_.end();) {
+    const Eigen::Vector3d vc((it->key.x + 0.5) * options_.resolution,
+                             (it->key.y + 0.5) * options_.resolution,
+                             (it->key.z + 0.5) * options_.resolution);
+    if ((vc - center).squaredNorm() > r2) {
+      num_points_ -= it->points.size();
+      index_.Erase(it->key);
+      it = lru_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+void VoxelMap::clear() {
+  lru_.clear();
+  index_.clear();
+  num_points_ = 0;
+}
+
+double VoxelMap::NeighbourLowerBound2(const Eigen::Vector3d& f, const VoxelKey& o) const {
+  constexpr double kMargin = 1e-4;
+  double sum = 0.0;
+  const int off[3] = {o.x, o.y, o.z};
+  for (int a = 0; a < 3; ++a) {
+    double gap = off[a] > 0 ? 1.0 - f[a] : (off[a] < 0 ? f[a] : 0.0);
+    gap = std::max(0.0, gap - kMargin);
+    sum += gap * gap;
+  }
+  return sum * options_.resolution * options_.resolution;
+}
+
+void VoxelMap::EvictOldest() {
+  num_points_ -= lru_.back().points.size();
+  index_.Erase(lru_.back().key);
+  lru_.pop_back();
+}
+
+void VoxelMap::BuildOffsets() {
+  offsets_.clear();
+  offsets_.push_back({0, 0, 0});
+  for (int dx = -1; dx <= 1; ++dx) {
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dz = -1; dz <= 1; ++dz) {
+        const int manhattan = std::abs(dx) + std::abs(dy) + std::abs(dz);
+        if (manhattan == 0) continue;
+        const bool take = (options_.nearby == NearbyType::kNearby7 && manhattan == 1) ||
+                          (options_.nearby == NearbyType::kNearby19 && manhattan <= 2) ||
+                          (options_.nearby == NearbyType::kNearby27);
+        if (take) offsets_.push_back({dx, dy, dz});
+      }
+    }
+  }
+}
+
+}  // namespace ppf

@@ -1,5 +1,6 @@
 // IEKF update with kNN point-to-plane residuals: convergence on a known offset in a synthetic
-// room, degeneracy detection in a corridor, and the plane validity test.
+// room, degeneracy detection in a corridor, the gates and the row noise, and gravity on S2. The
+// kNN residuals themselves: test_knn_residual.cpp.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,40 +10,11 @@
 #include "ppf_core/lio/iekf.hpp"
 #include "ppf_core/lio/knn_residual.hpp"
 #include "ppf_core/lio/so3.hpp"
-#include "ppf_core/lio/voxel_downsample.hpp"
-#include "ppf_core/lio/voxel_map.hpp"
+#include "lio/knn_room_fixture.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {
 namespace {
-
-struct Fixture {
-  VoxelMap map;
-  ScanFrame frame;
-};
-
-// Map from one scan at the identity, and a second (independently noisy) scan from the same pose.
-void Build(const test::Scene& scene, Fixture* f, double max_range = 100.0) {
-  test::LidarModel lidar;
-  lidar.range_noise = 0.01;
-  lidar.max_range = max_range;
-  std::mt19937 rng(5);
-  const test::PoseFn still = [](double) { return Eigen::Isometry3d::Identity(); };
-  for (double t : {0.0, 0.0123}) {  // two map scans, slightly different noise
-    for (const auto& p :
-         test::SimulateScan(scene, still, Eigen::Isometry3d::Identity(), t, lidar, &rng)) {
-      f->map.Insert(p.p);
-    }
-  }
-  std::vector<Eigen::Vector3f> scan;
-  for (const auto& p :
-       test::SimulateScan(scene, still, Eigen::Isometry3d::Identity(), 1.0, lidar, &rng)) {
-    scan.push_back(p.p);
-  }
-  f->frame.points_lidar = VoxelDownsample(scan, 0.5);
-  f->frame.labels.assign(f->frame.points_lidar.size(), PointLabel::kScattered);
-  f->frame.map = &f->map;
-}
 
 NavState OffsetPrior(const Eigen::Vector3d& dp, double yaw) {
   NavState s;
@@ -55,8 +27,8 @@ NavState OffsetPrior(const Eigen::Vector3d& dp, double yaw) {
 }
 
 TEST(Iekf, ConvergesToKnownTransformInRoom) {
-  Fixture f;
-  Build(test::MakeRoomScene(), &f);
+  test::KnnRoomFixture f;
+  test::BuildKnnRoom(test::MakeRoomScene(), &f);
   KnnResidualProvider knn;
   knn.BeginScan(f.frame);
   NavState s = OffsetPrior(Eigen::Vector3d(0.15, -0.10, 0.05), 2.0 * test::kPi / 180.0);
@@ -84,8 +56,8 @@ TEST(Iekf, EveryProviderIsAskedAtEveryIterationsEstimate) {
     }
     std::vector<Eigen::Vector3d> poses;
   };
-  Fixture f;
-  Build(test::MakeRoomScene(), &f);
+  test::KnnRoomFixture f;
+  test::BuildKnnRoom(test::MakeRoomScene(), &f);
   KnnResidualProvider knn;
   knn.BeginScan(f.frame);
   Recording rec;
@@ -100,35 +72,11 @@ TEST(Iekf, EveryProviderIsAskedAtEveryIterationsEstimate) {
   EXPECT_EQ(rep.rows_per_provider[1], 0);
 }
 
-// residual_max_range: only points within it give rows (they all still exist in the frame).
-TEST(KnnResidual, FarPointsGiveNoRowsBeyondResidualMaxRange) {
-  Fixture f;
-  Build(test::MakeRoomScene(), &f);
-  KnnResidualProvider knn;
-  std::vector<PointPlaneRow> all, near;
-  knn.BeginScan(f.frame);
-  knn.ComputeRows(Eigen::Isometry3d::Identity(), &all);
-  ASSERT_GT(all.size(), 100u);
-  std::vector<double> ranges;
-  for (const PointPlaneRow& r : all) ranges.push_back(r.point_lidar.norm());
-  std::nth_element(ranges.begin(), ranges.begin() + ranges.size() / 2, ranges.end());
-  // About half the rows are nearer; off the median point itself (float vs double rounding).
-  const double limit = ranges[ranges.size() / 2] + 1e-4;
-  f.frame.residual_max_range = limit;
-  knn.BeginScan(f.frame);
-  knn.ComputeRows(Eigen::Isometry3d::Identity(), &near);
-  size_t within = 0;
-  for (const PointPlaneRow& r : all) within += r.point_lidar.norm() <= limit ? 1 : 0;
-  EXPECT_EQ(near.size(), within);
-  EXPECT_LT(near.size(), all.size());
-  for (const PointPlaneRow& r : near) EXPECT_LE(r.point_lidar.norm(), limit);
-}
-
 TEST(Iekf, CorridorIsDegenerateAlongItsAxisAndKeepsThePrediction) {
   test::Scene corridor;
   corridor.boxes.push_back({Eigen::Vector3d(-300, -2, -1.5), Eigen::Vector3d(300, 2, 2.5), true});
-  Fixture f;
-  Build(corridor, &f, 40.0);  // end walls out of range: nothing constrains x
+  test::KnnRoomFixture f;
+  test::BuildKnnRoom(corridor, &f, 40.0);  // end walls out of range: nothing constrains x
   KnnResidualProvider knn;
   knn.BeginScan(f.frame);
   NavState s = OffsetPrior(Eigen::Vector3d(0.3, 0.1, 0.0), 0.0);
@@ -182,8 +130,8 @@ class FixedRows : public ResidualProvider {
 // 0.3 m below its own, as a road point to a kerb's foot would be) pull the pose about a
 // horizontal axis. The refined gate keeps them out of every iteration after the first.
 TEST(Iekf, RefinedGateKeepsConsistentWrongMatchesOutOfThePosterior) {
-  Fixture f;
-  Build(test::MakeRoomScene(), &f);
+  test::KnnRoomFixture f;
+  test::BuildKnnRoom(test::MakeRoomScene(), &f);
   std::vector<PointPlaneRow> wrong;
   for (const Eigen::Vector3f& p : f.frame.points_lidar) {
     if (p.x() < 1.0 || wrong.size() >= 400) continue;
@@ -221,8 +169,8 @@ TEST(Iekf, RefinedGateKeepsConsistentWrongMatchesOutOfThePosterior) {
 // beams are there) and acts through a long lever arm: with laser_angular_std the same small bias
 // on rows 40 m out turns the estimate far less (default laser_angular_std against none).
 TEST(Iekf, FarRowsWeighLessWithAngularNoise) {
-  Fixture f;
-  Build(test::MakeRoomScene(), &f);
+  test::KnnRoomFixture f;
+  test::BuildKnnRoom(test::MakeRoomScene(), &f);
   std::vector<PointPlaneRow> far;
   for (int i = 0; i < 300; ++i) {
     PointPlaneRow row;
@@ -275,30 +223,6 @@ TEST(GravityS2, BoxOperationsKeepMagnitudeAndInvert) {
       EXPECT_LT((fd - S2Jacobian(g0).col(k)).norm(), 1e-6) << k;
     }
   }
-}
-
-TEST(KnnResidual, PlaneValidityRejectsNonPlanarNeighbours) {
-  Eigen::Vector3d n;
-  double d;
-  std::vector<Eigen::Vector3f> flat = {
-      {0, 0, 0}, {1, 0, 0.02f}, {0, 1, -0.02f}, {1, 1, 0}, {0.5f, 0.5f, 0.01f}};
-  ASSERT_TRUE(FitPlane(flat, 0.1, &n, &d));
-  EXPECT_NEAR(std::abs(n.z()), 1.0, 1e-3);
-  std::vector<Eigen::Vector3f> corner = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}};
-  EXPECT_FALSE(FitPlane(corner, 0.1, &n, &d));
-  std::vector<Eigen::Vector3f> line = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}, {4, 0, 0}};
-  EXPECT_FALSE(FitPlane(line, 0.1, &n, &d));
-  // A 1 m piece of a scan ring on the floor 7.5 m away: nearly collinear. Accepted by the distance
-  // test alone; rejected once a minimum cross spread is required.
-  std::vector<Eigen::Vector3f> arc;
-  for (int i = -2; i <= 2; ++i) {
-    const double a = 0.033 * i;
-    arc.emplace_back(static_cast<float>(7.5 * std::cos(a)), static_cast<float>(7.5 * std::sin(a)),
-                     -2.f);
-  }
-  EXPECT_TRUE(FitPlane(arc, 0.1, &n, &d));
-  EXPECT_FALSE(FitPlane(arc, 0.1, &n, &d, 0.04));
-  EXPECT_TRUE(FitPlane(flat, 0.1, &n, &d, 0.04));
 }
 
 }  // namespace

@@ -1,0 +1,65 @@
+// kNN point-to-plane residuals: the plane validity test of the k neighbours, and the range
+// limit on the points that give rows.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "lio/knn_room_fixture.hpp"
+#include "ppf_core/lio/knn_residual.hpp"
+#include "synthetic.hpp"
+
+namespace ppf {
+namespace {
+
+TEST(KnnResidual, PlaneValidityRejectsNonPlanarNeighbours) {
+  Eigen::Vector3d n;
+  double d;
+  std::vector<Eigen::Vector3f> flat = {
+      {0, 0, 0}, {1, 0, 0.02f}, {0, 1, -0.02f}, {1, 1, 0}, {0.5f, 0.5f, 0.01f}};
+  ASSERT_TRUE(FitPlane(flat, 0.1, &n, &d));
+  EXPECT_NEAR(std::abs(n.z()), 1.0, 1e-3);
+  std::vector<Eigen::Vector3f> corner = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}};
+  EXPECT_FALSE(FitPlane(corner, 0.1, &n, &d));
+  std::vector<Eigen::Vector3f> line = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}, {4, 0, 0}};
+  EXPECT_FALSE(FitPlane(line, 0.1, &n, &d));
+  // A 1 m piece of a scan ring on the floor 7.5 m away: nearly collinear. Accepted by the distance
+  // test alone; rejected once a minimum cross spread is required.
+  std::vector<Eigen::Vector3f> arc;
+  for (int i = -2; i <= 2; ++i) {
+    const double a = 0.033 * i;
+    arc.emplace_back(static_cast<float>(7.5 * std::cos(a)), static_cast<float>(7.5 * std::sin(a)),
+                     -2.f);
+  }
+  EXPECT_TRUE(FitPlane(arc, 0.1, &n, &d));
+  EXPECT_FALSE(FitPlane(arc, 0.1, &n, &d, 0.04));
+  EXPECT_TRUE(FitPlane(flat, 0.1, &n, &d, 0.04));
+}
+
+// residual_max_range: only points within it give rows (they all still exist in the frame).
+TEST(KnnResidual, FarPointsGiveNoRowsBeyondResidualMaxRange) {
+  test::KnnRoomFixture f;
+  test::BuildKnnRoom(test::MakeRoomScene(), &f);
+  KnnResidualProvider knn;
+  std::vector<PointPlaneRow> all, near;
+  knn.BeginScan(f.frame);
+  knn.ComputeRows(Eigen::Isometry3d::Identity(), &all);
+  ASSERT_GT(all.size(), 100u);
+  std::vector<double> ranges;
+  for (const PointPlaneRow& r : all) ranges.push_back(r.point_lidar.norm());
+  std::nth_element(ranges.begin(), ranges.begin() + ranges.size() / 2, ranges.end());
+  // About half the rows are nearer; off the median point itself (float vs double rounding).
+  const double limit = ranges[ranges.size() / 2] + 1e-4;
+  f.frame.residual_max_range = limit;
+  knn.BeginScan(f.frame);
+  knn.ComputeRows(Eigen::Isometry3d::Identity(), &near);
+  size_t within = 0;
+  for (const PointPlaneRow& r : all) within += r.point_lidar.norm() <= limit ? 1 : 0;
+  EXPECT_EQ(near.size(), within);
+  EXPECT_LT(near.size(), all.size());
+  for (const PointPlaneRow& r : near) EXPECT_LE(r.point_lidar.norm(), limit);
+}
+
+}  // namespace
+}  // namespace ppf

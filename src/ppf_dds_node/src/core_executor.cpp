@@ -54,7 +54,9 @@ std::unique_ptr<LioPpf> CoreExecutor::CreateCore(const NodeConfig& c, std::strin
   }
   if (c.core_mode == "knn") core_config.mode = Mode::kKnn;
   if (c.core_mode == "ppf") core_config.mode = Mode::kPpf;
-  core_config.output_deskewed_points = c.publish_registered_points;
+  // The map (outputs.map_file) is made of the same points: one copy of the scan's downsampled
+  // points per result, small beside registering them.
+  core_config.output_deskewed_points = c.publish_registered_points || !c.map_file.empty();
   // Everything else, imu.mode among it, comes from the core config files read above and is
   // applied by the core itself (lio_ppf.hpp); the node overrides only the mode and the output of
   // de-skewed points, and routes the core's log lines into its own log below.
@@ -70,12 +72,13 @@ std::unique_ptr<LioPpf> CoreExecutor::CreateCore(const NodeConfig& c, std::strin
 }
 
 CoreExecutor::CoreExecutor(const NodeConfig& c, std::unique_ptr<LioPpf> core, NodeInputs* inputs,
-                           NodeOutputs* outputs, NodeStats* stats)
+                           NodeOutputs* outputs, NodeMap* map, NodeStats* stats)
     : config_(c),
       core_(std::move(core)),
       scan_queue_(inputs->scans()),
       imu_queue_(inputs->imus()),
       outputs_(*outputs),
+      map_(*map),
       stats_(*stats),
       ahead_log_(c.malformed_log_interval_s),
       late_log_(c.malformed_log_interval_s),
@@ -336,6 +339,7 @@ void CoreExecutor::Publish(const ScanResult& r, const PendingScan& p, double cor
   if (!r.pose_valid) return;
   outputs_.Publish(r);
   t.published = Clock::now();
+  map_.Add(r);  // after the odometry is out: the map never delays it
   t.received = p.received;
   t.core_ms = core_ms;
   t.imu_wait_ms = imu_wait_ms;

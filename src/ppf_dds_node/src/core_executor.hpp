@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "node_inputs.hpp"
+#include "node_map.hpp"
 #include "node_outputs.hpp"
 #include "node_stats.hpp"
 #include "ppf_core/lio_ppf.hpp"
@@ -28,7 +29,7 @@ class CoreExecutor {
   static std::unique_ptr<LioPpf> CreateCore(const NodeConfig& config, std::string* error);
 
   CoreExecutor(const NodeConfig& config, std::unique_ptr<LioPpf> core, NodeInputs* inputs,
-               NodeOutputs* outputs, NodeStats* stats);
+               NodeOutputs* outputs, NodeMap* map, NodeStats* stats);
 
   // The executor thread's body. Returns after RequestDrain() once the queues are empty and the
   // core has been flushed.
@@ -65,6 +66,7 @@ class CoreExecutor {
   ScanQueue& scan_queue_;
   ImuQueue& imu_queue_;
   NodeOutputs& outputs_;
+  NodeMap& map_;
   NodeStats& stats_;
   std::atomic<bool> drain_requested_{false};
 

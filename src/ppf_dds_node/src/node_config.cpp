@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "ppf_core/config_table.hpp"
+#include "ppf_trajectory/map_export.hpp"
 
 namespace ppf::dds {
 namespace {
@@ -39,6 +40,11 @@ std::string NotANodeConfig(const std::string& yaml) {
          "config/node_hdl32.yaml";
 }
 
+bool MapFileExtensionOk(const std::string& file) {
+  MapFormat format;
+  return MapFormatForFile(file, false, &format);
+}
+
 // Values no file can mean: clamped with a warning naming the key, or an error.
 void ValidateNodeConfig(NodeConfig* c, NodeConfigReport* r) {
   auto clamp_min = [r](int* v, int lo, const char* key) {
@@ -61,6 +67,16 @@ void ValidateNodeConfig(NodeConfig* c, NodeConfigReport* r) {
   if (std::isnan(c->stall_warn_s)) {
     r->warnings.push_back("diagnostics.stall_warn_s is not a number: using 5");
     c->stall_warn_s = 5.0;
+  }
+  // As ppf_offline --map-voxel: finer would cost memory for nothing the core resolves, coarser
+  // is no map.
+  if (!(c->map_voxel >= 0.01 && c->map_voxel <= 100.0)) {
+    r->warnings.push_back("outputs.map_voxel must be in 0.01..100 m: using 0.1");
+    c->map_voxel = 0.1;
+  }
+  if (!c->map_file.empty() && !MapFileExtensionOk(c->map_file)) {
+    r->ok = false;
+    r->error = "outputs.map_file '" + c->map_file + "' must end in .pcd or .ply";
   }
   if (c->participant.domain_id < 0 || c->participant.domain_id > 232) {
     r->ok = false;
@@ -105,6 +121,8 @@ ConfigTable NodeConfigTable(NodeConfig* c) {
   t.Add("outputs.path_max_poses", &c->path_max_poses);
   t.Add("outputs.skeleton_planes", &c->publish_skeleton_planes);
   t.Add("outputs.registered_points", &c->publish_registered_points);
+  t.Add("outputs.map_file", &c->map_file);
+  t.Add("outputs.map_voxel", &c->map_voxel);
   t.Add("queues.scan_capacity", &c->scan_queue_capacity);
   t.Add("queues.imu_capacity", &c->imu_queue_capacity);
   t.Add("queues.max_cloud_points", &c->max_cloud_points);

@@ -2,6 +2,7 @@
 //   NodeInputs    DDS readers + listeners, buffer pool, gap counters, validation, input queues
 //   CoreExecutor  the executor thread: owns LioPpf, feeds it, time-jump policy, result matching
 //   NodeOutputs   odometry, TF, path, skeleton planes, registered points, TUM file
+//   NodeMap       the saved map (outputs.map_file): its own thread accumulates and writes
 //   NodeStats     counters and latency series behind the periodic and summary lines
 // This file only creates them in order, runs the diagnostics loop and tears them down.
 #include "ppf_dds_node/ppf_node.hpp"
@@ -17,6 +18,7 @@
 
 #include "core_executor.hpp"
 #include "node_inputs.hpp"
+#include "node_map.hpp"
 #include "node_outputs.hpp"
 #include "node_stats.hpp"
 #include "ppf_dds_node/dds_common.hpp"
@@ -30,7 +32,7 @@ using Clock = std::chrono::steady_clock;
 // Declared in the order the parts depend on each other: stats before the parts that count into
 // it, the executor (which holds the queues, outputs and stats by reference) last, so it goes first.
 struct PpfNode::Impl {
-  explicit Impl(const NodeConfig& c) : config(c), inputs(c, &stats), outputs(c) {}
+  explicit Impl(const NodeConfig& c) : config(c), inputs(c, &stats), outputs(c), map(c) {}
 
   // Deletes every DDS entity, so no listener runs afterwards. Never called with one of our locks
   // held: Fast DDS waits for its listener threads here.
@@ -50,6 +52,7 @@ struct PpfNode::Impl {
   NodeStats stats;
   NodeInputs inputs;
   NodeOutputs outputs;
+  NodeMap map;
   std::unique_ptr<CoreExecutor> executor;
   fdds::DomainParticipant* participant = nullptr;
 
@@ -68,7 +71,8 @@ bool PpfNode::init(std::string* error) {
   // Core first: a bad core config must fail before we appear on the network.
   std::unique_ptr<LioPpf> core = CoreExecutor::CreateCore(c, error);
   if (!core) return false;
-  m.executor = std::make_unique<CoreExecutor>(c, std::move(core), &m.inputs, &m.outputs, &m.stats);
+  m.executor = std::make_unique<CoreExecutor>(c, std::move(core), &m.inputs, &m.outputs, &m.map,
+                                              &m.stats);
 
   m.participant = CreateParticipant(c.participant, error);
   if (!m.participant) return false;
@@ -160,6 +164,7 @@ void PpfNode::run() {
       Log(Level::kError, error);
     }
   }
+  m.map.Finish();  // every scan the executor handed over is in the file (or an ERROR says why)
   m.outputs.WaitForAcknowledgments();
   m.TearDown();
 }
@@ -170,6 +175,14 @@ void PpfNode::stop() {
     impl_->stop_requested = true;
   }
   impl_->stop_cv.notify_all();
+}
+
+void PpfNode::SaveMap() {
+  if (impl_->map.enabled()) {
+    impl_->map.RequestSave();
+  } else {
+    Log(Level::kInfo, "no map to save: outputs.map_file is not set");
+  }
 }
 
 NodeSummary PpfNode::summary() const { return impl_->stats.Snapshot(); }

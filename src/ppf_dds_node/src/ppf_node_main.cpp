@@ -22,7 +22,9 @@ void Usage(const char* argv0) {
                "  --config FILE       node YAML (every key optional, see config/node.yaml)\n"
                "  --calibration FILE  core YAML layered over core.config_file (e.g. the robot's\n"
                "                      T_imu_lidar); overrides core.calibration_file\n"
-               "  --domain ID         overrides dds.domain_id\n",
+               "  --domain ID         overrides dds.domain_id\n"
+               "SIGINT/SIGTERM stop it (trajectory.tum_file and outputs.map_file written);\n"
+               "SIGUSR1 writes outputs.map_file and it goes on.\n",
                argv0);
 }
 
@@ -139,10 +141,12 @@ int main(int argc, char** argv) {
   ApplyOmpWaitPolicy(config.omp_wait_policy, argv);
 
   // Signals are handled by a dedicated thread (sigwait), so stop() never runs in a signal handler.
+  // SIGUSR1 saves the map (outputs.map_file) and the node goes on.
   sigset_t set;
   sigemptyset(&set);
   sigaddset(&set, SIGINT);
   sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGUSR1);
   pthread_sigmask(SIG_BLOCK, &set, nullptr);  // inherited by every thread created from here on
 
   ppf::dds::PpfNode node(config);
@@ -156,7 +160,7 @@ int main(int argc, char** argv) {
 
   std::thread signal_thread([&node, set] {
     int sig = 0;
-    sigwait(&set, &sig);
+    while (sigwait(&set, &sig) == 0 && sig == SIGUSR1) node.SaveMap();
     if (sig != 0) Log(Level::kInfo, std::string("ppf_node: ") + strsignal(sig) + ", stopping");
     node.stop();
   });

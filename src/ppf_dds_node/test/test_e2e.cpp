@@ -1,17 +1,25 @@
 // End to end across processes, as a user runs it:
 //   ppf_sim -> bag -> ppf_replay -> ppf_node -> ppf_record -> bag -> TUM -> ppf_eval ape
-// at real-time rate (nothing may be lost, APE within the core's own accuracy bound) and at 5x
-// (the node keeps up or drops scans as designed and says so; memory stays bounded).
+// at real-time rate (nothing may be lost, APE within the core's own accuracy bound, the map saved
+// on SIGUSR1 during the replay and at shutdown lies on the simulated surfaces) and at 5x (the
+// node keeps up or drops scans as designed and says so; memory stays bounded).
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <functional>
+#include <iterator>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "dds_test_util.hpp"
 #include "nav_msgs/msg/Odometry.h"
@@ -20,6 +28,8 @@
 #include "ppf_dds_node/child_process.hpp"
 #include "ppf_msgs_cdr/cdr.hpp"
 #include "ppf_msgs_cdr/time.hpp"
+#include "ppf_sim/scene_distance.hpp"
+#include "ppf_sim/world.hpp"
 #include "ppf_trajectory/evaluation.hpp"
 #include "ppf_trajectory/trajectory_io.hpp"
 #include "test_domain.hpp"
@@ -71,6 +81,89 @@ double PathLength(const ppf::Trajectory& t, double from_s, double to_s) {
   return len;
 }
 
+// A map as ppf_node writes it (binary PCD, x y z intensity as little-endian float32): the header
+// must be exactly the documented one for its point count, then 16 bytes a point, nothing more.
+::testing::AssertionResult ReadPcdMap(const std::string& path, std::vector<Eigen::Vector3f>* xyz) {
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const size_t at = bytes.find("\nPOINTS ");
+  if (at == std::string::npos) return ::testing::AssertionFailure() << path << ": no POINTS line";
+  const size_t n = std::strtoul(bytes.c_str() + at + 8, nullptr, 10);
+  // One header line per source line.
+  // clang-format off
+  const std::string header =
+      "# .PCD v0.7 - Point Cloud Data file format\n"
+      "VERSION 0.7\n"
+      "FIELDS x y z intensity\n"
+      "SIZE 4 4 4 4\n"
+      "TYPE F F F F\n"
+      "COUNT 1 1 1 1\n"
+      "WIDTH " + std::to_string(n) + "\n"
+      "HEIGHT 1\n"
+      "VIEWPOINT 0 0 0 1 0 0 0\n"
+      "POINTS " + std::to_string(n) + "\n"
+      "DATA binary\n";
+  // clang-format on
+  if (bytes.compare(0, header.size(), header) != 0) {
+    return ::testing::AssertionFailure() << path << ": header differs:\n"
+                                         << bytes.substr(0, header.size());
+  }
+  if (bytes.size() != header.size() + 16 * n) {
+    return ::testing::AssertionFailure() << path << ": " << bytes.size() << " bytes for " << n
+                                         << " points";
+  }
+  auto le_float = [&](size_t offset) {
+    uint32_t u = 0;
+    for (int b = 0; b < 4; ++b) u |= uint32_t{static_cast<uint8_t>(bytes[offset + b])} << (8 * b);
+    float f;
+    std::memcpy(&f, &u, sizeof(f));
+    return f;
+  };
+  xyz->clear();
+  for (size_t i = 0; i < n; ++i) {
+    const size_t o = header.size() + 16 * i;
+    xyz->emplace_back(le_float(o), le_float(o + 4), le_float(o + 8));
+    if (!(le_float(o + 12) >= 1.0f)) {
+      return ::testing::AssertionFailure() << path << ": point " << i << " has intensity "
+                                           << le_float(o + 12) << " (points in its voxel)";
+    }
+  }
+  return ::testing::AssertionSuccess();
+}
+
+// The node's "map saved <why>: N points (V m voxels, S scans) -> FILE" line: N and S, or false.
+bool MapSavedLine(const std::string& log, const std::string& why, const std::string& file,
+                  size_t* points, size_t* scans) {
+  std::stringstream ss(log);
+  std::string line;
+  const std::string key = "] map saved " + why + ": ";
+  while (std::getline(ss, line)) {
+    const size_t p = line.find(key);
+    if (p == std::string::npos) continue;
+    double voxel = 0;
+    return std::sscanf(line.c_str() + p + key.size(), "%zu points (%lf m voxels, %zu scans)",
+                       points, &voxel, scans) == 3 &&
+           line.size() >= file.size() + 3 &&
+           line.compare(line.size() - file.size() - 3, std::string::npos, "-> " + file) == 0;
+  }
+  return false;
+}
+
+// Median distance of the map's points (estimated world, placed in the simulator's with T_sim_est)
+// to the scene's surfaces, over at most 20000 of them taken evenly (each point is tested against
+// every primitive of the scene).
+double MedianDistanceToScene(const std::vector<Eigen::Vector3f>& map, const ppf::sim::Scene& scene,
+                             const Eigen::Isometry3d& T_sim_est) {
+  const size_t stride = std::max<size_t>(1, map.size() / 20000);
+  std::vector<double> d;
+  for (size_t i = 0; i < map.size(); i += stride) {
+    d.push_back(ppf::sim::DistanceToScene(scene, T_sim_est * map[i].cast<double>()));
+  }
+  if (d.empty()) return std::numeric_limits<double>::infinity();
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
 struct RunResult {
   std::string summary;
   std::string replay_done;
@@ -80,9 +173,11 @@ struct RunResult {
 };
 
 // Runs record + node + replay on `bag` and stops them in order (the node with `stop_signal`).
-// Fails the test on any hang.
+// While the replay runs, `during_replay` (if set) is called every 100 ms with the node and the
+// seconds since the replay started. Fails the test on any hang.
 void RunPipeline(const std::string& bag, const std::string& dir, double rate,
-                 const std::string& extra_node_yaml, int stop_signal, RunResult* out) {
+                 const std::string& extra_node_yaml, int stop_signal, RunResult* out,
+                 const std::function<void(ChildProcess&, double)>& during_replay = nullptr) {
   const int domain = ppf::test::TestDomainId(static_cast<int>(rate * 10));
   const std::string dds_args = std::to_string(domain);
   out->dir = dir;
@@ -119,11 +214,16 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   play_args.insert(play_args.end(), dds.begin(), dds.end());
   ASSERT_TRUE(replay.Start(play_args, {}, dir + "/replay.log"));
   // Sample the node's memory while the bag plays.
-  const auto deadline = std::chrono::steady_clock::now() + 60s;
+  const auto started = std::chrono::steady_clock::now();
+  const auto deadline = started + 60s;
   bool done = false;
   while (!done && std::chrono::steady_clock::now() < deadline) {
     out->max_rss_kb = std::max(out->max_rss_kb, ppf::test::ProcStatusKb(node.pid(), "VmRSS"));
     done = replay.WaitForLine("PPF_REPLAY_DONE", &line, 100ms);
+    if (during_replay) {
+      during_replay(node, std::chrono::duration<double>(std::chrono::steady_clock::now() - started)
+                              .count());
+    }
   }
   ASSERT_TRUE(done) << "replay did not finish";
   out->replay_done = line;
@@ -160,21 +260,42 @@ class EndToEnd : public ::testing::Test {
     if (sim_.empty()) GTEST_SKIP() << "ppf_sim not found (PATH or configure time): build ppf_sim";
   }
   static void TearDownTestSuite() {
-    // The bags are large (~100 MB); logs and trajectories stay for inspection.
+    // The bags and maps are large (~100 MB, a few MB); logs and trajectories stay for inspection.
     if (!dir_.empty()) {
-      std::system(
-          ("rm -rf '" + dir_ + "/bag' '" + dir_ + "/rt/rec' '" + dir_ + "/x5/rec'").c_str());
+      std::system(("rm -rf '" + dir_ + "/bag' '" + dir_ + "/rt/rec' '" + dir_ + "/x5/rec' '" +
+                   dir_ + "/rt/map.pcd' '" + dir_ + "/rt/map_usr1.pcd'")
+                      .c_str());
     }
   }
   static std::string sim_, eval_, offline_, dir_;
 };
 std::string EndToEnd::sim_, EndToEnd::eval_, EndToEnd::offline_, EndToEnd::dir_;
 
+// Also the saved map (outputs.map_file): SIGUSR1 once the node's status line (every second here)
+// counts 30 poses saves it while the replay goes on (the file is copied aside as soon as the node
+// logs the save), SIGINT saves it again.
 TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
   const std::string dir = dir_ + "/rt";
   ASSERT_EQ(mkdir(dir.c_str(), 0755), 0);
+  const std::string map = dir + "/map.pcd";
+  bool usr1_sent = false, usr1_saved = false;
+  auto save_during_replay = [&](ChildProcess& node, double) {
+    if (usr1_saved) return;
+    const std::string log = ppf::test::ReadTextFile(dir + "/node.log");
+    const size_t odom = log.rfind(" odom=");
+    if (!usr1_sent && odom != std::string::npos && std::atoi(log.c_str() + odom + 6) >= 30) {
+      node.Signal(SIGUSR1);
+      usr1_sent = true;
+    }
+    if (usr1_sent && ppf::test::CountLinesWith(log, "] map saved on request") > 0) {
+      std::filesystem::copy_file(map, dir + "/map_usr1.pcd");
+      usr1_saved = true;
+    }
+  };
   RunResult run;
-  RunPipeline(dir_ + "/bag", dir, 1.0, "", SIGINT, &run);
+  RunPipeline(dir_ + "/bag", dir, 1.0,
+              "outputs: {map_file: \"" + map + "\"}\ndiagnostics: {period_s: 1.0}\n", SIGINT,
+              &run, save_during_replay);
   ASSERT_FALSE(HasFatalFailure());
   const auto info = ppf::bag::ReadInfo(dir_ + "/bag");
   double bag_scans = 0, bag_imus = 0;
@@ -259,6 +380,59 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
     EXPECT_GE(diff.matched, est.size() - 1);
     EXPECT_LT(diff.stats.rmse, 0.005);
   }
+
+  // The map: saved once on SIGUSR1 and once at shutdown, nothing failed, every odometry scan in
+  // the final one and only part of them in the first.
+  const std::string log = ppf::test::ReadTextFile(dir + "/node.log");
+  EXPECT_TRUE(usr1_saved) << "no 'map saved on request' line after SIGUSR1";
+  EXPECT_EQ(ppf::test::CountLinesWith(log, "] map saved "), 2) << log;
+  EXPECT_EQ(ppf::test::CountLinesWith(log, "map not saved"), 0) << log;
+  size_t usr1_points = 0, usr1_scans = 0, final_points = 0, final_scans = 0;
+  ASSERT_TRUE(MapSavedLine(log, "on request (SIGUSR1)", map, &usr1_points, &usr1_scans)) << log;
+  ASSERT_TRUE(MapSavedLine(log, "at shutdown", map, &final_points, &final_scans)) << log;
+  EXPECT_EQ(static_cast<double>(final_scans), odom);
+  EXPECT_GE(usr1_scans, 30u);
+  EXPECT_LT(usr1_scans + 20, final_scans);
+  std::vector<Eigen::Vector3f> usr1_map, final_map;
+  ASSERT_TRUE(ReadPcdMap(dir + "/map_usr1.pcd", &usr1_map));
+  ASSERT_TRUE(ReadPcdMap(map, &final_map));
+  EXPECT_FALSE(std::filesystem::exists(map + ".tmp"));
+  EXPECT_EQ(usr1_map.size(), usr1_points);
+  EXPECT_EQ(final_map.size(), final_points);
+  EXPECT_GT(final_map.size(), usr1_map.size());
+  // On the surfaces of the scene the bag was simulated in (rebuilt from its options; its
+  // trajectory reproduces the ground truth file), the node's world (its own trajectory file, the
+  // frame the map is in) put on the simulator's with the first pose, at rest.
+  ppf::Trajectory node_traj;
+  ASSERT_TRUE(ppf::ReadTum(dir + "/node.tum", &node_traj, &error)) << error;
+  ASSERT_FALSE(node_traj.empty());
+  ppf::sim::WorldOptions wo;
+  wo.scene = "urban";
+  wo.duration = 10.0;
+  wo.seed = 1;
+  const ppf::sim::World world = ppf::sim::BuildWorld(wo);
+  const double start_s = 1700000000.0;  // ppf_sim's sim time 0
+  for (size_t i : {size_t{0}, gt.size() / 2, gt.size() - 1}) {
+    const Eigen::Isometry3d T = world.trajectory.Pose(gt[i].stamp_s - start_s);
+    ASSERT_LT((T.translation() - gt[i].T.translation()).norm(), 1e-3) << "ground truth row " << i;
+  }
+  const double t0 = node_traj.front().stamp_s;
+  const auto nearest = std::min_element(gt.begin(), gt.end(), [&](const auto& a, const auto& b) {
+    return std::abs(a.stamp_s - t0) < std::abs(b.stamp_s - t0);
+  });
+  const Eigen::Isometry3d T_sim_est = nearest->T * node_traj.front().T.inverse();
+  const double usr1_median = MedianDistanceToScene(usr1_map, world.scene, T_sim_est);
+  const double final_median = MedianDistanceToScene(final_map, world.scene, T_sim_est);
+  const Eigen::Isometry3d shifted = Eigen::Translation3d(0.15, 0.15, 0.15) * T_sim_est;
+  const double shifted_median = MedianDistanceToScene(final_map, world.scene, shifted);
+  std::printf(
+      "map on SIGUSR1: %zu points of %zu scans, median distance to the scene %.4f m; at "
+      "shutdown: %zu points of %zu scans, %.4f m (%.4f m shifted by 15 cm)\n",
+      usr1_map.size(), usr1_scans, usr1_median, final_map.size(), final_scans, final_median,
+      shifted_median);
+  EXPECT_LT(usr1_median, 0.05);
+  EXPECT_LT(final_median, 0.05);
+  EXPECT_GT(shifted_median, 0.1);  // the measure tells a map off by 15 cm from one on the surfaces
 }
 
 TEST_F(EndToEnd, FiveTimesRateKeepsUpOrDropsAsDesignedWithBoundedMemory) {

@@ -265,6 +265,28 @@ TEST(NodeConfig, WrongTypesAndValuesAreErrorsNamingTheKey) {
   EXPECT_FALSE(r.ok);
 }
 
+// outputs.map_file picks the format by its extension, as ppf_offline --map-out: any other name is
+// refused before the node starts (not found out at the first save); a voxel size no map can have
+// falls back to the default with a warning.
+TEST(NodeConfig, MapFileNeedsAPcdOrPlyNameAndTheVoxelARange) {
+  NodeConfig c;
+  auto r = LoadNodeConfigString("outputs: {map_file: run/map.PLY, map_voxel: 0.25}\n", &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_TRUE(r.warnings.empty());
+  EXPECT_EQ(c.map_file, "run/map.PLY");
+  EXPECT_EQ(c.map_voxel, 0.25);
+  NodeConfig d;
+  r = LoadNodeConfigString("outputs: {map_file: map.xyz}\n", &d);
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(r.error, "outputs.map_file 'map.xyz' must end in .pcd or .ply");
+  EXPECT_TRUE(d.map_file.empty());  // all or nothing
+  r = LoadNodeConfigString("outputs: {map_file: map.pcd, map_voxel: 0}\n", &d);
+  ASSERT_TRUE(r.ok) << r.error;
+  ASSERT_EQ(r.warnings.size(), 1u);
+  EXPECT_EQ(r.warnings[0], "outputs.map_voxel must be in 0.01..100 m: using 0.1");
+  EXPECT_EQ(d.map_voxel, 0.1);
+}
+
 // Found by fuzz_node_config: a key that is itself a list or a map (YAML allows it, a typo such as
 // "? sensor_depth: 2" produces one) threw out of the loader and aborted ppf_node at start-up.
 TEST(NodeConfig, NonScalarKeysAreRefusedWithAReason) {

@@ -41,6 +41,11 @@ struct NodeConfig {
   int path_max_poses = 1000;  // /path keeps the last N poses (bounded message and memory)
   bool publish_skeleton_planes = true;
   bool publish_registered_points = false;
+  // Every scan with a trusted pose (status ok or degenerate) accumulated in the world (odom)
+  // frame, one point per map_voxel-sized voxel, written to map_file at shutdown and on SIGUSR1:
+  // binary PCD (.pcd) or binary PLY (.ply), as ppf_offline --map-out. "" = off.
+  std::string map_file;
+  double map_voxel = 0.1;  // m; as ppf_offline --map-voxel
 
   // Scans waiting for the core; when full the oldest is dropped (and counted).
   int scan_queue_capacity = 4;

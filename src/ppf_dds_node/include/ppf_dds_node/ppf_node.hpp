@@ -5,8 +5,10 @@
 //                         time-ordered queues; never wait for the core
 //   executor thread       CoreExecutor: the only thread touching ppf::LioPpf; publishes the
 //                         results through NodeOutputs
-//   run() caller          periodic diagnostics (NodeStats); on stop(): drain, flush, write TUM,
-//                         tear down
+//   run() caller          periodic diagnostics (NodeStats); on stop(): drain, flush, write TUM
+//                         and the map, tear down
+//   map thread            NodeMap (outputs.map_file): accumulates the registered scans, writes
+//                         the map file on SaveMap() and at shutdown
 //
 // Usage (as in eProsima's examples): PpfNode node(config); node.init(&err); node.run() until
 // stop() is called (e.g. from a signal watcher); the destructor deletes all entities.
@@ -36,6 +38,10 @@ class PpfNode {
   void run();
   // Thread-safe, returns at once.
   void stop();
+  // Thread-safe, returns at once: the map thread writes outputs.map_file with every scan
+  // registered so far (logged with the point count; a failed write is an ERROR line and the node
+  // goes on). Without outputs.map_file, one line says so.
+  void SaveMap();
 
   NodeSummary summary() const;
   // "key=value ..." line, stable for scripts and tests.

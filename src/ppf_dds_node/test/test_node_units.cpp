@@ -2,11 +2,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include <fastdds/rtps/common/SerializedPayload.h>
 
@@ -20,6 +22,7 @@
 #include "ppf_dds_node/time_ordered_queue.hpp"
 #include "ppf_msgs_cdr/cdr.hpp"
 #include "ppf_msgs_cdr/cdr_payload.hpp"
+#include "../src/node_map.hpp"    // private to the node: the saved map under test
 #include "../src/node_stats.hpp"  // private to the node: its counters under test
 #include "test_domain.hpp"
 
@@ -285,6 +288,94 @@ TEST(NodeConfig, MapFileNeedsAPcdOrPlyNameAndTheVoxelARange) {
   ASSERT_EQ(r.warnings.size(), 1u);
   EXPECT_EQ(r.warnings[0], "outputs.map_voxel must be in 0.01..100 m: using 0.1");
   EXPECT_EQ(d.map_voxel, 0.1);
+}
+
+// The node's map: only trusted poses go in; a save on request and the one at shutdown each write
+// the file with what was added before them and log one line; a file that cannot be written is
+// one ERROR line per attempt and the map goes on.
+TEST(NodeMap, TrustedScansOnlySavedOnRequestAndAtShutdownAndAFailedWriteIsOneLine) {
+  const std::string dir = ::testing::TempDir() + "/ppf_node_map";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  ScanResult r;
+  r.status = Status::kOk;
+  r.pose_valid = true;
+  r.T_world_lidar.translation() = Eigen::Vector3d(5.0, 0.0, 0.0);
+  for (int i = 0; i < 10; ++i) r.deskewed_points_lidar.push_back(Eigen::Vector3f(i, 0.f, 0.f));
+  auto header_points = [](const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind("POINTS ", 0) == 0) return std::atoi(line.c_str() + 7);
+    }
+    return -1;
+  };
+
+  NodeConfig c;
+  c.map_file = dir + "/map.pcd";
+  c.map_voxel = 0.5;
+  testing::internal::CaptureStderr();
+  {
+    NodeMap map(c);
+    ASSERT_TRUE(map.enabled());
+    map.Add(r);  // 10 voxels
+    ScanResult untrusted = r;
+    untrusted.T_world_lidar.translation().x() = 100.0;  // would add voxels of its own
+    untrusted.pose_valid = false;
+    map.Add(untrusted);
+    untrusted.pose_valid = true;
+    untrusted.status = Status::kInitializing;
+    map.Add(untrusted);
+    map.RequestSave();
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (map.saves() == 0 && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    ASSERT_EQ(map.saves(), 1u);
+    EXPECT_EQ(header_points(c.map_file), 10);
+    r.status = Status::kDegenerate;
+    r.T_world_lidar.translation().y() = 3.0;  // 10 more voxels
+    map.Add(r);
+    map.Finish();
+    EXPECT_EQ(map.saves(), 2u);
+    EXPECT_EQ(map.save_errors(), 0u);
+    EXPECT_EQ(map.scans_skipped(), 0u);
+  }
+  EXPECT_EQ(header_points(c.map_file), 20);
+  EXPECT_FALSE(std::filesystem::exists(c.map_file + ".tmp"));
+  const std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_NE(log.find("map saved on request (SIGUSR1): 10 points (0.5 m voxels, 1 scans) -> " +
+                     c.map_file + "\n"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("map saved at shutdown: 20 points (0.5 m voxels, 2 scans) -> " + c.map_file +
+                     "\n"),
+            std::string::npos)
+      << log;
+
+  c.map_file = dir + "/no/such/dir/map.ply";
+  testing::internal::CaptureStderr();
+  {
+    NodeMap map(c);
+    map.Add(r);
+    map.Finish();
+    EXPECT_EQ(map.saves(), 0u);
+    EXPECT_EQ(map.save_errors(), 1u);
+  }
+  const std::string error = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(std::count(error.begin(), error.end(), '\n'), 1) << error;
+  EXPECT_NE(error.find("[ERROR] map not saved at shutdown: cannot write " + c.map_file + ".tmp"),
+            std::string::npos)
+      << error;
+
+  NodeConfig off;  // no map_file: no thread, nothing written
+  NodeMap none(off);
+  EXPECT_FALSE(none.enabled());
+  none.Add(r);
+  none.RequestSave();
+  none.Finish();
+  EXPECT_EQ(none.saves(), 0u);
+  std::filesystem::remove_all(dir);
 }
 
 // Found by fuzz_node_config: a key that is itself a list or a map (YAML allows it, a typo such as

@@ -133,6 +133,7 @@ void CoreExecutor::Run() {
 void CoreExecutor::RestartCore(const std::string& why) {
   if (!pending_.empty()) RunCore(true);
   core_->Reset();
+  if (imu_rate_) imu_rate_->OnCoreRestart();
   last_imu_fed_ = last_scan_fed_ = -std::numeric_limits<double>::infinity();
   stats_.Add(&NodeSummary::resets);
   // Not rate limited: restarts are rare and each one matters.
@@ -306,6 +307,7 @@ void CoreExecutor::RunCore(bool flush) {
 // long to bridge gives no reset: the core registers the scans LiDAR-only and LIO re-anchors.
 void CoreExecutor::ReportNotice(const ScanResult& r) {
   stats_.CountNotice(r);
+  if (imu_rate_) imu_rate_->OnResult(r);
   if (r.status == Status::kReset) {
     status_log_.Log(Level::kWarn, std::string("core: ") + StatusName(r.status) + ": " + r.reason);
   }
@@ -336,9 +338,13 @@ void CoreExecutor::Publish(const ScanResult& r, const PendingScan& p, double cor
   if (r.status == Status::kRejected || r.status == Status::kReset) {
     status_log_.Log(Level::kWarn, std::string("core: ") + StatusName(r.status) + ": " + r.reason);
   }
-  if (!r.pose_valid) return;
+  if (!r.pose_valid) {
+    if (imu_rate_) imu_rate_->OnResult(r);  // a reset ends the IMU-rate odometry
+    return;
+  }
   outputs_.Publish(r);
   t.published = Clock::now();
+  if (imu_rate_) imu_rate_->OnResult(r);  // after /odometry, which it never delays
   map_.Add(r);  // after the odometry is out: the map never delays it
   t.received = p.received;
   t.core_ms = core_ms;

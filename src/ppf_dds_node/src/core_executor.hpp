@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "imu_rate_output.hpp"
 #include "node_inputs.hpp"
 #include "node_map.hpp"
 #include "node_outputs.hpp"
@@ -34,6 +35,9 @@ class CoreExecutor {
   // The executor thread's body. Returns after RequestDrain() once the queues are empty and the
   // core has been flushed.
   void Run();
+  // The IMU-rate odometry, told of every result and restart (outputs.odometry_imu_rate; none
+  // if off). Set before Run().
+  void SetImuRateOutput(ImuRateOutput* output) { imu_rate_ = output; }
   // Thread-safe.
   void RequestDrain();
   // Reports the suppressed tails of the rate-limited logs (any thread).
@@ -68,6 +72,7 @@ class CoreExecutor {
   NodeOutputs& outputs_;
   NodeMap& map_;
   NodeStats& stats_;
+  ImuRateOutput* imu_rate_ = nullptr;
   std::atomic<bool> drain_requested_{false};
 
   double last_imu_fed_ = -std::numeric_limits<double>::infinity();

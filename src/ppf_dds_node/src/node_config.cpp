@@ -111,6 +111,7 @@ ConfigTable NodeConfigTable(NodeConfig* c) {
   t.Add("topics.tf", &c->tf_topic);
   t.Add("topics.path", &c->path_topic);
   t.Add("topics.registered_points", &c->registered_points_topic);
+  t.Add("topics.odometry_imu_rate", &c->odometry_imu_rate_topic);
   t.Add("frames.odom_frame", &c->odom_frame);
   t.Add("frames.base_frame", &c->base_frame);
   t.AddEnum("qos.sensor_reliability", &c->sensor_reliability,
@@ -121,6 +122,7 @@ ConfigTable NodeConfigTable(NodeConfig* c) {
   t.Add("outputs.path_max_poses", &c->path_max_poses);
   t.Add("outputs.skeleton_planes", &c->publish_skeleton_planes);
   t.Add("outputs.registered_points", &c->publish_registered_points);
+  t.Add("outputs.odometry_imu_rate", &c->publish_odometry_imu_rate);
   t.Add("outputs.map_file", &c->map_file);
   t.Add("outputs.map_voxel", &c->map_voxel);
   t.Add("queues.scan_capacity", &c->scan_queue_capacity);

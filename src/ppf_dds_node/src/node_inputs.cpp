@@ -380,6 +380,7 @@ void NodeInputs::OnImu(fdds::DataReader* reader) {
   while (true) {
     Validated<sensor_msgs::msg::Imu> sample;
     fdds::SampleInfo info;
+    const Clock::time_point received = Clock::now();
     if (reader->take_next_sample(&sample, &info) != ReturnCode_t::RETCODE_OK) break;
     if (!info.valid_data) continue;
     imu_stall_.OnSample(Clock::now());
@@ -420,6 +421,7 @@ void NodeInputs::OnImu(fdds::DataReader* reader) {
                              "; the core is stalled (total IMU dropped: " + std::to_string(total) +
                              ")");
     }
+    if (imu_observer_) imu_observer_(*imu, sample.msg.header().stamp(), received);
   }
 }
 

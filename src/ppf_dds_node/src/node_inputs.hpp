@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -56,6 +57,12 @@ class NodeInputs {
   bool Create(eprosima::fastdds::dds::DomainParticipant* participant,
               eprosima::fastdds::dds::Subscriber* subscriber, std::string* error);
 
+  // Called on the IMU listener thread with each valid sample after it is queued for the core:
+  // the sample, its message's header stamp and when the listener took it. Set before Create().
+  using ImuObserver = std::function<void(const ImuSample&, const builtin_interfaces::msg::Time&,
+                                         std::chrono::steady_clock::time_point)>;
+  void SetImuObserver(ImuObserver observer) { imu_observer_ = std::move(observer); }
+
   // Samples taken from now on are discarded (shutdown: what is queued is still processed).
   void StopAccepting() { accepting_ = false; }
 
@@ -89,6 +96,7 @@ class NodeInputs {
   ScanQueue scan_queue_;
   ImuQueue imu_queue_;
   std::atomic<bool> accepting_{true};
+  ImuObserver imu_observer_;
 
   eprosima::fastdds::dds::TypeSupport cloud_type_;
   eprosima::fastdds::dds::TypeSupport imu_type_;

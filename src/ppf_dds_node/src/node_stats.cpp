@@ -145,6 +145,12 @@ void NodeStats::AddPublished(const ScanTiming& t) {
   overhead_ms_.Add(latency - t.core_ms - t.imu_wait_ms - t.behind_core_ms);
 }
 
+void NodeStats::AddImuRatePublished(double latency_ms) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++summary_.odometry_imu_rate_published;
+  imu_rate_latency_ms_.Add(latency_ms);
+}
+
 NodeSummary NodeStats::Snapshot() const {
   std::lock_guard<std::mutex> lock(mutex_);
   NodeSummary s = summary_;
@@ -166,6 +172,9 @@ NodeSummary NodeStats::Snapshot() const {
   s.behind_core_p99_ms = behind_core_ms_.Percentile(99);
   s.publish_p50_ms = publish_ms_.Percentile(50);
   s.publish_p99_ms = publish_ms_.Percentile(99);
+  s.imu_rate_latency_p50_ms = imu_rate_latency_ms_.Percentile(50);
+  s.imu_rate_latency_p99_ms = imu_rate_latency_ms_.Percentile(99);
+  s.imu_rate_latency_max_ms = imu_rate_latency_ms_.Max();
   return s;
 }
 
@@ -239,6 +248,10 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " behind_core_p50_ms=" << s.behind_core_p50_ms
     << " behind_core_p99_ms=" << s.behind_core_p99_ms << " publish_p50_ms=" << s.publish_p50_ms
     << " publish_p99_ms=" << s.publish_p99_ms
+    << " odometry_imu_rate_published=" << s.odometry_imu_rate_published
+    << " imu_rate_latency_p50_ms=" << s.imu_rate_latency_p50_ms
+    << " imu_rate_latency_p99_ms=" << s.imu_rate_latency_p99_ms
+    << " imu_rate_latency_max_ms=" << s.imu_rate_latency_max_ms
     << " last_status=" << (s.last_status.empty() ? "none" : s.last_status);
   return o.str();
 }

@@ -71,6 +71,8 @@ class NodeStats {
   std::pair<uint64_t, uint64_t> Lost() const;
   // One scan whose odometry was published.
   void AddPublished(const ScanTiming& t);
+  // One IMU-rate odometry message written, `latency_ms` after its IMU sample was taken.
+  void AddImuRatePublished(double latency_ms);
 
   // Executor time inside the core, total: a queued scan's share of it is how long it waited
   // behind older scans (read by the listener when it queues a scan).
@@ -104,6 +106,7 @@ class NodeStats {
   double core_stall_s_ = 0.0;
   LatencyStats latency_ms_, core_time_ms_, overhead_ms_, imu_wait_ms_, decode_ms_, queue_ms_,
       behind_core_ms_, publish_ms_;
+  LatencyHistogram imu_rate_latency_ms_;
   std::atomic<int64_t> core_busy_ns_{0};
 };
 

@@ -2,6 +2,7 @@
 //   NodeInputs    DDS readers + listeners, buffer pool, gap counters, validation, input queues
 //   CoreExecutor  the executor thread: owns LioPpf, feeds it, time-jump policy, result matching
 //   NodeOutputs   odometry, TF, path, skeleton planes, registered points, TUM file
+//   ImuRateOutput the odometry at the IMU's rate, published from the IMU listener
 //   NodeMap       the saved map (outputs.map_file): its own thread accumulates and writes
 //   NodeStats     counters and latency series behind the periodic and summary lines
 // This file only creates them in order, runs the diagnostics loop and tears them down.
@@ -17,6 +18,7 @@
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 
 #include "core_executor.hpp"
+#include "imu_rate_output.hpp"
 #include "node_inputs.hpp"
 #include "node_map.hpp"
 #include "node_outputs.hpp"
@@ -52,6 +54,7 @@ struct PpfNode::Impl {
   NodeStats stats;
   NodeInputs inputs;
   NodeOutputs outputs;
+  std::unique_ptr<ImuRateOutput> imu_rate;  // outputs.odometry_imu_rate
   NodeMap map;
   std::unique_ptr<CoreExecutor> executor;
   fdds::DomainParticipant* participant = nullptr;
@@ -71,6 +74,9 @@ bool PpfNode::init(std::string* error) {
   // Core first: a bad core config must fail before we appear on the network.
   std::unique_ptr<LioPpf> core = CoreExecutor::CreateCore(c, error);
   if (!core) return false;
+  if (c.publish_odometry_imu_rate) {
+    m.imu_rate = std::make_unique<ImuRateOutput>(c, core->config(), &m.stats);
+  }
   m.executor = std::make_unique<CoreExecutor>(c, std::move(core), &m.inputs, &m.outputs, &m.map,
                                               &m.stats);
 
@@ -84,6 +90,15 @@ bool PpfNode::init(std::string* error) {
   }
   // Writers before readers: data may flow as soon as the readers exist.
   if (!m.outputs.Create(m.participant, publisher, m.inputs.cloud_type(), error)) return false;
+  if (m.imu_rate) {
+    if (!m.imu_rate->Create(m.participant, publisher, error)) return false;
+    m.executor->SetImuRateOutput(m.imu_rate.get());
+    m.inputs.SetImuObserver([out = m.imu_rate.get()](const ImuSample& s,
+                                                     const builtin_interfaces::msg::Time& stamp,
+                                                     Clock::time_point received) {
+      out->OnImu(s, stamp, received);
+    });
+  }
   if (!m.inputs.Create(m.participant, subscriber, error)) return false;
   Log(Level::kInfo,
       "ppf_node up: domain " + std::to_string(c.participant.domain_id) + ", in " +
@@ -166,6 +181,7 @@ void PpfNode::run() {
   }
   m.map.Finish();  // every scan the executor handed over is in the file (or an ERROR says why)
   m.outputs.WaitForAcknowledgments();
+  if (m.imu_rate) m.imu_rate->WaitForAcknowledgments();
   m.TearDown();
 }
 

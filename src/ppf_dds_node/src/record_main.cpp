@@ -51,6 +51,7 @@ const std::map<std::string, std::string>& KnownTypes() {
       {"/points", "sensor_msgs/msg/PointCloud2"},
       {"/imu", "sensor_msgs/msg/Imu"},
       {"/odometry", "nav_msgs/msg/Odometry"},
+      {"/odometry/imu", "nav_msgs/msg/Odometry"},
       {"/skeleton_planes", "ppf_msgs/msg/SkeletonPlaneArray"},
       {"/tf", "tf2_msgs/msg/TFMessage"},
       {"/path", "nav_msgs/msg/Path"},

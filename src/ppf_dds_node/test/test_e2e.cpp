@@ -28,6 +28,7 @@
 #include "ppf_dds_node/child_process.hpp"
 #include "ppf_msgs_cdr/cdr.hpp"
 #include "ppf_msgs_cdr/time.hpp"
+#include "sensor_msgs/msg/Imu.h"
 #include "ppf_sim/scene_distance.hpp"
 #include "ppf_sim/world.hpp"
 #include "ppf_trajectory/evaluation.hpp"
@@ -43,10 +44,13 @@ using ppf::test::SummaryField;
 
 namespace {
 
-// /odometry of a recorded bag as a TUM file (stamp = header stamp, pose = pose.pose).
-size_t OdometryBagToTum(const std::string& bag, const std::string& tum, std::string* frames) {
+// /odometry (or another Odometry topic) of a recorded bag as a TUM file (stamp = header stamp,
+// pose = pose.pose); the header stamps in nanoseconds into *stamps_ns if given.
+size_t OdometryBagToTum(const std::string& bag, const std::string& tum, std::string* frames,
+                        const std::string& topic = "/odometry",
+                        std::vector<int64_t>* stamps_ns = nullptr) {
   ppf::bag::Reader reader(bag);
-  reader.SetTopicFilter({"/odometry"});
+  reader.SetTopicFilter({topic});
   ppf::TumWriter out(tum);
   ppf::bag::Message m;
   size_t n = 0;
@@ -66,6 +70,7 @@ size_t OdometryBagToTum(const std::string& bag, const std::string& tum, std::str
                      .normalized()
                      .toRotationMatrix();
     out.Write(ppf::msgs::ToNanoseconds(o.header().stamp()), T);
+    if (stamps_ns) stamps_ns->push_back(ppf::msgs::ToNanoseconds(o.header().stamp()));
     ++n;
   }
   EXPECT_TRUE(out.Close()) << "cannot write " << tum;
@@ -195,8 +200,9 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   const std::vector<std::string> dds = {"--domain", dds_args,    "--profiles",
                                         kProfiles,  "--profile", kProfile};
   ChildProcess record, node, replay;
-  std::vector<std::string> rec_args = {PPF_RECORD_EXE, "--topics",   "/odometry", "/tf",
-                                       "--out",        dir + "/rec", "--storage", "sqlite3"};
+  std::vector<std::string> rec_args = {PPF_RECORD_EXE,  "--topics", "/odometry", "/tf",
+                                       "/odometry/imu", "--out",    dir + "/rec", "--storage",
+                                       "sqlite3"};
   rec_args.insert(rec_args.end(), dds.begin(), dds.end());
   ASSERT_TRUE(record.Start(rec_args, {}, dir + "/record.log"));
   std::string line;
@@ -239,6 +245,68 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   EXPECT_TRUE(ppf::dds::ExitedWith(record.Wait(10s), 0));
   std::printf("%s\n%s\n%s\nnode max VmRSS %ld kB\n", out->replay_done.c_str(), out->summary.c_str(),
               out->record_done.c_str(), out->max_rss_kb);
+}
+
+// The IMU-rate odometry (/odometry/imu, recorded in <dir>/rec) of a real-time run on `bag`: one
+// message per IMU sample over the span it covers, each stamped with an IMU sample's stamp, as
+// accurate against the ground truth at every sample as the per-scan odometry (APE `scan_rmse`
+// against `gt`), and its latency printed.
+void CheckImuRateOdometry(const std::string& bag, const std::string& dir, const std::string& summary,
+                          const ppf::Trajectory& gt, double scan_rmse) {
+  std::vector<int64_t> imu_ns;
+  {
+    ppf::bag::Reader reader(bag);
+    reader.SetTopicFilter({"/imu"});
+    ppf::bag::Message m;
+    while (reader.Next(m)) {
+      sensor_msgs::msg::Imu imu;
+      std::string error;
+      ASSERT_TRUE(ppf::msgs::DecodeCdr(m.data, &imu, &error)) << error;
+      imu_ns.push_back(ppf::msgs::ToNanoseconds(imu.header().stamp()));
+    }
+  }
+  std::sort(imu_ns.begin(), imu_ns.end());
+  ASSERT_GT(imu_ns.size(), 1000u);
+  std::string frames;
+  std::vector<int64_t> stamps;
+  const size_t n =
+      OdometryBagToTum(dir + "/rec", dir + "/imu_rate.tum", &frames, "/odometry/imu", &stamps);
+  ASSERT_GT(n, 100u) << "no IMU-rate odometry recorded";
+  EXPECT_EQ(static_cast<double>(n), SummaryField(summary, "odometry_imu_rate_published"));
+  EXPECT_EQ(frames, "odom->base_link");
+  size_t not_imu = 0, not_increasing = 0;
+  for (size_t i = 0; i < stamps.size(); ++i) {
+    not_imu += !std::binary_search(imu_ns.begin(), imu_ns.end(), stamps[i]);
+    not_increasing += i > 0 && stamps[i] <= stamps[i - 1];
+  }
+  EXPECT_EQ(not_imu, 0u) << "messages whose stamp is no IMU sample's";
+  EXPECT_EQ(not_increasing, 0u);
+  // Over the span it covers (from the first posterior's arrival to the end of the stream).
+  const auto span_begin = std::lower_bound(imu_ns.begin(), imu_ns.end(), stamps.front());
+  const auto span_end = std::upper_bound(imu_ns.begin(), imu_ns.end(), stamps.back());
+  const double expected = static_cast<double>(std::distance(span_begin, span_end));
+  const double imu_hz = static_cast<double>(imu_ns.size() - 1) /
+                        (1e-9 * static_cast<double>(imu_ns.back() - imu_ns.front()));
+  const double out_hz = static_cast<double>(n - 1) /
+                        (1e-9 * static_cast<double>(stamps.back() - stamps.front()));
+  EXPECT_NEAR(static_cast<double>(n), expected, 0.01 * expected);
+  EXPECT_NEAR(out_hz, imu_hz, 0.01 * imu_hz);
+
+  ppf::Trajectory est;
+  std::string error;
+  ASSERT_TRUE(ppf::ReadTum(dir + "/imu_rate.tum", &est, &error)) << error;
+  const ppf::EvalResult ape = ppf::ComputeApe(gt, est, ppf::EvalOptions());
+  ASSERT_TRUE(ape.ok) << ape.error;
+  EXPECT_GE(ape.matched, n - 1) << "every message matches a ground-truth pose (same stamps)";
+  std::printf(
+      "IMU-rate odometry: %zu messages at %.2f Hz (IMU %.2f Hz, %.0f samples in its span), APE "
+      "rmse %.4f m over %zu poses vs %.4f m per scan (bound 1.5x); latency IMU taken -> written "
+      "p50 %.3f ms, p99 %.3f ms, max %.3f ms\n",
+      n, out_hz, imu_hz, expected, ape.stats.rmse, ape.matched, scan_rmse,
+      SummaryField(summary, "imu_rate_latency_p50_ms"),
+      SummaryField(summary, "imu_rate_latency_p99_ms"),
+      SummaryField(summary, "imu_rate_latency_max_ms"));
+  EXPECT_LT(ape.stats.rmse, 1.5 * scan_rmse);
 }
 
 class EndToEnd : public ::testing::Test {
@@ -362,6 +430,7 @@ TEST_F(EndToEnd, RealTimeReplayLosesNothingAndMeetsTheCoreApeBound) {
   EXPECT_GT(path, 3.0);
   // The core's own accuracy bound for this scene (ppf_tools test_accuracy: 0.5 % of path).
   EXPECT_LT(percent, 0.5);
+  CheckImuRateOdometry(dir_ + "/bag", dir, run.summary, gt, in_process.stats.rmse);
 
   // Fidelity: over DDS the node must compute what the core computes offline on the same bag.
   if (!offline_.empty()) {

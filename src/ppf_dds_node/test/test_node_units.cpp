@@ -152,6 +152,8 @@ TEST(NodeConfig, EmptyYamlGivesDocumentedDefaults) {
   EXPECT_TRUE(c.publish_tf);
   EXPECT_EQ(c.participant.domain_id, 0);
   EXPECT_EQ(c.max_cloud_points, 4000000);
+  EXPECT_TRUE(c.publish_odometry_imu_rate);
+  EXPECT_EQ(c.odometry_imu_rate_topic, "/odometry/imu");
 }
 
 TEST(NodeConfig, MaxCloudPointsIsReadAndKeptPositive) {
@@ -546,6 +548,23 @@ TEST(LatencyStats, NearestRankPercentiles) {
   EXPECT_DOUBLE_EQ(s.Percentile(99), 99);
   EXPECT_DOUBLE_EQ(s.Percentile(100), 100);
   EXPECT_DOUBLE_EQ(s.Max(), 100);
+}
+
+// The IMU-rate latency's bounded series: percentiles exact to one bin (the bin's upper edge),
+// samples beyond the range in the last bin, the maximum exact.
+TEST(LatencyHistogram, PercentilesToOneBinAndAnExactMaximum) {
+  LatencyHistogram h(0.01, 1.0);
+  EXPECT_TRUE(std::isnan(h.Percentile(99)));
+  for (int i = 0; i < 98; ++i) h.Add(0.104);
+  h.Add(0.5);
+  h.Add(7.25);  // beyond the range
+  h.Add(std::nan(""));
+  EXPECT_EQ(h.count(), 100u);
+  EXPECT_NEAR(h.Percentile(50), 0.11, 1e-12);
+  EXPECT_NEAR(h.Percentile(98), 0.11, 1e-12);
+  EXPECT_NEAR(h.Percentile(99), 0.51, 1e-12);
+  EXPECT_DOUBLE_EQ(h.Percentile(100), 7.25);
+  EXPECT_DOUBLE_EQ(h.Max(), 7.25);
 }
 
 // The listener's in-place decode must accept and reject exactly what DecodeCdr does.

@@ -27,6 +27,8 @@ struct NodeConfig {
   std::string tf_topic = "/tf";
   std::string path_topic = "/path";
   std::string registered_points_topic = "/registered_points";
+  // The odometry at the IMU's rate: the last scan's posterior propagated with each IMU sample.
+  std::string odometry_imu_rate_topic = "/odometry/imu";
 
   std::string odom_frame = "odom";
   std::string base_frame = "base_link";  // the IMU body frame: odometry is the IMU's pose
@@ -41,6 +43,7 @@ struct NodeConfig {
   int path_max_poses = 1000;  // /path keeps the last N poses (bounded message and memory)
   bool publish_skeleton_planes = true;
   bool publish_registered_points = false;
+  bool publish_odometry_imu_rate = true;
   // Every scan with a trusted pose (status ok or degenerate) accumulated in the world (odom)
   // frame, one point per map_voxel-sized voxel, written to map_file at shutdown and on SIGUSR1:
   // binary PCD (.pcd) or binary PLY (.ply), as ppf_offline --map-out. "" = off.

@@ -2,7 +2,9 @@
 //
 // Threads (and the part, under src/, that owns what each one works on):
 //   DDS listener threads  NodeInputs: decode + validate (ppf_bridge), push into bounded
-//                         time-ordered queues; never wait for the core
+//                         time-ordered queues; never wait for the core. The IMU listener
+//                         also propagates and publishes the IMU-rate odometry (ImuRateOutput,
+//                         its own copy of the state and lock)
 //   executor thread       CoreExecutor: the only thread touching ppf::LioPpf; publishes the
 //                         results through NodeOutputs
 //   run() caller          periodic diagnostics (NodeStats); on stop(): drain, flush, write TUM

@@ -3,9 +3,10 @@
 //
 // Threads: the IMU listener propagates and publishes each sample as soon as it is taken, so the
 // message waits neither for the executor (busy registering a scan for tens of milliseconds) nor
-// for a scan; the executor hands over each result. The propagation is this object's own small
-// copy of the state, not the core: the executor stays the only thread touching LioPpf. One
-// mutex guards that copy, held for the propagation only, never while calling into Fast DDS.
+// for a scan (docs/decisions.md, "IMU-rate odometry on the IMU listener"); the executor hands
+// over each result. The propagation is this object's own small copy of the state, not the core:
+// the executor stays the only thread touching LioPpf. One mutex guards that copy, held for the
+// propagation only, never while calling into Fast DDS.
 #pragma once
 
 #include <chrono>

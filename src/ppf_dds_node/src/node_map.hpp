@@ -1,7 +1,8 @@
 // NodeMap: the map the node saves (outputs.map_file). The executor thread only hands each trusted
 // scan's points over (a copy, queued under a short lock that no Fast DDS call is made under); the
 // map's own thread accumulates them into the voxel grid and writes the file. So neither the grid's
-// growth nor a save, however large the map or slow the disk, holds up odometry.
+// growth nor a save, however large the map or slow the disk, holds up odometry (docs/decisions.md,
+// "The node's map on its own thread").
 #pragma once
 
 #include <atomic>

@@ -31,7 +31,7 @@ void LioPpf::Impl::StartLidarOnly(double t) {
 // observed and stay fixed (their covariance tiny and uncorrelated, so updates leave them).
 void LioPpf::Impl::PredictConstantVelocity(double t_end, PoseTrace* trace) {
   // Before the map's first scan there is nothing to extrapolate: StartLidarOnly's pose stands.
-  const Eigen::Isometry3d T = motion.has_pose() ? motion.Predict(t_end) : state.T_world_imu();
+  const Eigen::Isometry3d T = motion.has_pose() ? ExtrapolateModel(t_end) : state.T_world_imu();
   *trace = motion.Trace();
   if (!motion.has_pose()) {
     trace->knots.front().R = T.linear();
@@ -44,6 +44,32 @@ void LioPpf::Impl::PredictConstantVelocity(double t_end, PoseTrace* trace) {
   // Raw like an IMU sample (FillState removes the bias): non-zero only in an IMU loss.
   gyro_at_scan_end = motion.angular_velocity() + state.gyro_bias;
   SetLidarOnlyPrior();
+}
+
+// The constant-velocity model's pose at t_end. Across a gap longer than the IMU bridges, after LIO
+// ran (gravity known), only the turn about the vertical is extrapolated: a vehicle's or a hand's
+// roll and pitch rates are oscillations that reverse within a second, so carrying them on over
+// seconds tilts the guess by degrees, which the alignment of a street's walls and ground does
+// not take back and the resumed filter then keeps. The path follows the heading's turn at the
+// speed the filter had.
+Eigen::Isometry3d LioPpf::Impl::ExtrapolateModel(double t_end) const {
+  const double dt = t_end - motion.stamp();
+  if (!fallback_scan || dt <= config.max_imu_gap_s || state.gravity_world.norm() < 1.0) {
+    return motion.Predict(t_end);
+  }
+  const Eigen::Isometry3d T_last = motion.pose();
+  const Eigen::Vector3d up = -state.gravity_world.normalized();
+  // Swing-twist: the part of the extrapolated turn about `up`.
+  const Eigen::Quaterniond q(motion.Predict(t_end).linear() * T_last.linear().transpose());
+  const Eigen::Vector3d axis_part = q.vec().dot(up) * up;
+  Eigen::Quaterniond twist(q.w(), axis_part.x(), axis_part.y(), axis_part.z());
+  if (twist.norm() < 1e-9) twist = Eigen::Quaterniond::Identity();
+  twist.normalize();
+  const Eigen::Matrix3d half_turn = SO3Exp(0.5 * SO3Log(twist.toRotationMatrix()));
+  Eigen::Isometry3d T = T_last;
+  T.linear() = NormalizeRotation(twist.toRotationMatrix() * T_last.linear());
+  T.translation() += half_turn * motion.velocity_world() * dt;
+  return T;
 }
 
 void LioPpf::Impl::SetLidarOnlyPrior() {
@@ -95,7 +121,7 @@ CoarseAlignment LioPpf::Impl::AlignGuesses(double t_end) {
   const Eigen::Isometry3d& T_il = config.T_imu_lidar;
   const double dt = t_end - motion.stamp();
   const Eigen::Isometry3d T_last = motion.pose();
-  const Eigen::Isometry3d T_cv = motion.Predict(t_end);
+  const Eigen::Isometry3d T_cv = ExtrapolateModel(t_end);
   std::vector<MotionHypothesis> h;
   if (imu_prediction) h.push_back({"gyro", state.T_world_imu() * T_il});
   imu_prediction = false;

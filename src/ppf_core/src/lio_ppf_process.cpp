@@ -83,6 +83,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   const IekfReport rep = Register(t_end, lidar, &T_world_lidar, &r);
   SetUpdateStatus(rep, lidar, &r);
   if (lidar) FinishLidarOnly(coarse, t_end, &r);
+  if (Relocating()) ReportRelocalization(&r);
   r.pose_valid = true;
 
   ExtendMap(rep, T_world_lidar, &r);
@@ -204,9 +205,11 @@ void LioPpf::Impl::StartMap(bool lidar, double t_end, ScanResult* r) {
   r->map_size = map.size();
 }
 
-// The split into skeleton and scattered points (kPpf) and the count of each label.
+// The split into skeleton and scattered points (kPpf) and the count of each label. A scan
+// re-localized after a long gap is registered on the kNN map alone: its guess may lie a street
+// length from the truth, where the tracked planes pair with the wrong surfaces and tilt it.
 void LioPpf::Impl::SplitScan(ScanResult* r) {
-  if (tracker) {
+  if (tracker && !Relocating()) {
     const auto t0 = Clock::now();
     tracker->Split(&frame);
     frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
@@ -290,7 +293,8 @@ IekfReport LioPpf::Impl::Register(double t_end, bool lidar, Eigen::Isometry3d* T
                                   ScanResult* r) {
   std::vector<ResidualProvider*> providers;
   providers.push_back(knn.get());
-  if (tracker) providers.push_back(tracker->residual_provider().get());  // PPF: skeleton rows
+  const bool skeleton = tracker && !Relocating();
+  if (skeleton) providers.push_back(tracker->residual_provider().get());  // PPF: skeleton rows
   for (ResidualProvider* p : providers) p->BeginScan(frame);
   IekfOptions iekf = config.iekf;
   if (t_end - map_init_stamp_s < iekf.refined_gate_after_s) iekf.refined_gate = 0.0;
@@ -319,7 +323,7 @@ IekfReport LioPpf::Impl::Register(double t_end, bool lidar, Eigen::Isometry3d* T
       r->skeleton_residuals += static_cast<size_t>(rep.rows_per_provider[i]);
   }
   const Eigen::Isometry3d T_world_lidar = state.T_world_imu() * config.T_imu_lidar;
-  if (tracker) {
+  if (skeleton) {
     const auto t0 = Clock::now();
     tracker->Finish(frame, T_world_lidar);
     r->skeleton_planes = tracker->window().planes();  // map frame until FillState
@@ -508,11 +512,21 @@ void LioPpf::Impl::FinishLidarOnly(const CoarseAlignment& coarse, double t_end, 
   motion.Update(state.T_world_imu(), t_end);
 }
 
+void LioPpf::Impl::ReportRelocalization(ScanResult* r) {
+  r->relocalized = true;
+  std::ostringstream os;
+  os.precision(3);
+  os << "re-localized after " << fallback_dt << " s without data: " << r->motion_guess
+     << ", fit " << r->fit << " (the map is extended again once LIO confirms the pose)";
+  Append(&r->reason, os.str());
+  Log(LogLevel::kWarn, os.str());
+}
+
 void LioPpf::Impl::ExtendMap(const IekfReport& rep, const Eigen::Isometry3d& T_world_lidar,
                              ScanResult* r) {
   const auto t0 = Clock::now();
   // A scan that could not be registered is not trusted to extend the map.
-  if (!rep.skipped) InsertScattered(frame, T_world_lidar, r);
+  if (!rep.skipped && !Relocating()) InsertScattered(frame, T_world_lidar, r);
   if (config.map_radius > 0.0 && ++scans_since_prune >= 10) {
     map.RemoveFarFrom(state.p_world_imu, config.map_radius);
     scans_since_prune = 0;

@@ -134,6 +134,10 @@ struct ScanResult {
   bool imu_lost = false;
   // The first LIO scan after an IMU loss (the reason says "LIO resumed"; imu_gap_s is the gap).
   bool lio_resumed = false;
+  // Registered LiDAR-only after a gap longer than the IMU bridges (both streams silent, or the
+  // IMU lost that long, while moving): the pose was found again on the map from guesses along
+  // the way (motion_guess, fit). It extends no map until LIO confirms it; one WARN says so.
+  bool relocalized = false;
   double imu_gap_s = 0.0;      // > 0: an IMU gap this long before this scan was bridged
   // != 0: the IMU's clock runs this many seconds behind the LiDAR's (scan end minus the newest
   // IMU sample, both streams live): the scan was registered LiDAR-only and the IMU is not used

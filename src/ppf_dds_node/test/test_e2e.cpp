@@ -200,9 +200,11 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
   const std::vector<std::string> dds = {"--domain", dds_args,    "--profiles",
                                         kProfiles,  "--profile", kProfile};
   ChildProcess record, node, replay;
-  std::vector<std::string> rec_args = {PPF_RECORD_EXE,  "--topics", "/odometry", "/tf",
-                                       "/odometry/imu", "--out",    dir + "/rec", "--storage",
-                                       "sqlite3"};
+  std::vector<std::string> rec_args = {PPF_RECORD_EXE, "--topics",   "/odometry", "/tf",
+                                       "--out",        dir + "/rec", "--storage", "sqlite3"};
+  // The IMU-rate odometry is checked at real time only: at 5x, recording five times the IMU's
+  // rate would compete with the node for the shared cores.
+  if (rate == 1.0) rec_args.insert(rec_args.begin() + 4, "/odometry/imu");
   rec_args.insert(rec_args.end(), dds.begin(), dds.end());
   ASSERT_TRUE(record.Start(rec_args, {}, dir + "/record.log"));
   std::string line;

@@ -15,6 +15,7 @@ PlanePatchMap::PlanePatchMap(const PlanePatchMapOptions& options) : options_(opt
   options_.max_points = std::max(options_.min_points, options_.max_points);
   options_.max_cells = std::max<size_t>(1, options_.max_cells);
   inv_cell_ = 1.0 / options_.cell_size;
+  same_surface_cos_ = std::cos(options_.same_surface_deg * M_PI / 180.0);
 }
 
 uint64_t PlanePatchMap::KeyOf(const Eigen::Vector3d& p) const {
@@ -32,7 +33,7 @@ void PlanePatchMap::Insert(const Eigen::Vector3d& p_world, const Eigen::Vector3d
   const uint64_t key = KeyOf(p_world);
   Cell& cell = cells_[key];
   cell.last_insert = generation_ + 1;
-  const double min_cos = std::cos(options_.same_surface_deg * M_PI / 180.0);
+  const double min_cos = same_surface_cos_;
   Patch* patch = nullptr;
   for (Patch& candidate : cell.patches) {
     const Eigen::Vector3d n = candidate.normal_sum.normalized();
@@ -71,7 +72,7 @@ void PlanePatchMap::Refit(Patch* patch) const {
   if (ev(1) / m.count < min_spread * min_spread || !(ev(0) < 0.1 * ev(1))) return;
   const Eigen::Vector3d n = patch->normal_sum.normalized();
   const Eigen::Vector3d pca = es.eigenvectors().col(0);
-  if (std::abs(pca.dot(n)) < std::cos(options_.same_surface_deg * M_PI / 180.0)) return;
+  if (std::abs(pca.dot(n)) < same_surface_cos_) return;
   patch->plane = Plane{pca, -pca.dot(m.centroid)};
   patch->usable = true;
 }

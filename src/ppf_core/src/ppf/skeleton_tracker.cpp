@@ -39,6 +39,11 @@ void SkeletonTracker::Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_
   last_ids_ = window_.Update(prefit_.planes, T_world_lidar);
   if (!config().anchor_patches) return;
   const size_t n = std::min(prefit_.skeleton_indices.size(), prefit_.skeleton_plane.size());
+  // Each plane's normal in the world once, not once per point of it (the same product).
+  normals_world_.clear();
+  for (const FittedPlane& f : prefit_.planes) {
+    normals_world_.push_back(T_world_lidar.linear() * f.plane.n);
+  }
   for (size_t k = 0; k < n; ++k) {
     const int idx = prefit_.skeleton_indices[k];
     const int pl = prefit_.skeleton_plane[k];
@@ -46,8 +51,7 @@ void SkeletonTracker::Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_
         pl >= static_cast<int>(prefit_.planes.size())) {
       continue;
     }
-    patches_.Insert(T_world_lidar * frame.points_lidar[idx].cast<double>(),
-                    T_world_lidar.linear() * prefit_.planes[pl].plane.n);
+    patches_.Insert(T_world_lidar * frame.points_lidar[idx].cast<double>(), normals_world_[pl]);
   }
   patches_.FinishInsert();
   if (config().patch_radius > 0.0 && ++scans_since_prune_ >= 10) {

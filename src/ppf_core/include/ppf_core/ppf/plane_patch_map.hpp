@@ -92,6 +92,8 @@ class PlanePatchMap {
 
   PlanePatchMapOptions options_;
   double inv_cell_ = 0.5;
+  // cos(same_surface_deg), computed once: Insert and Refit test it for every point and patch.
+  double same_surface_cos_ = 1.0;
   std::unordered_map<uint64_t, Cell> cells_;
   std::vector<uint64_t> touched_;  // cells with a changed patch since the last FinishInsert
   uint64_t generation_ = 0;

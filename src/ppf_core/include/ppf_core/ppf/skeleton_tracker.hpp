@@ -53,6 +53,7 @@ class SkeletonTracker {
   std::shared_ptr<SkeletonResidualProvider> provider_;
   PrefitResult prefit_;
   std::vector<int64_t> last_ids_;
+  std::vector<Eigen::Vector3d> normals_world_;  // scratch of Finish: each plane's world normal
 };
 
 }  // namespace ppf

@@ -27,7 +27,8 @@ NodeMap::~NodeMap() { Finish(); }
 
 void NodeMap::Add(const ScanResult& r) {
   if (!enabled()) return;
-  const bool trusted = r.pose_valid && (r.status == Status::kOk || r.status == Status::kDegenerate);
+  const bool trusted = r.pose_valid && !r.relocalized &&
+                       (r.status == Status::kOk || r.status == Status::kDegenerate);
   if (!trusted || r.deskewed_points_lidar.empty()) return;
   Scan scan{r.deskewed_points_lidar, r.T_world_lidar};  // copied before the lock is taken
   {

@@ -32,7 +32,8 @@ class NodeMap {
   bool enabled() const { return thread_.joinable(); }
 
   // Executor thread: queues the scan's de-skewed points (Config::output_deskewed_points) if its
-  // pose is trusted: status kOk or kDegenerate with pose_valid, as ppf_offline's map.
+  // pose is trusted: status kOk or kDegenerate with pose_valid, not relocalized (the core's own
+  // map does not take such a scan either), as ppf_offline's map.
   void Add(const ScanResult& r);
   // Any thread, returns at once: the map thread writes the file with what it has so far.
   void RequestSave();

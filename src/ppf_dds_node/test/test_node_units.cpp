@@ -328,6 +328,9 @@ TEST(NodeMap, TrustedScansOnlySavedOnRequestAndAtShutdownAndAFailedWriteIsOneLin
     untrusted.pose_valid = true;
     untrusted.status = Status::kInitializing;
     map.Add(untrusted);
+    untrusted.status = Status::kOk;
+    untrusted.relocalized = true;  // found again after a long gap: extends no map
+    map.Add(untrusted);
     map.RequestSave();
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
     while (map.saves() == 0 && std::chrono::steady_clock::now() < deadline) {

@@ -3,7 +3,8 @@
 namespace ppf::tools {
 
 bool MapAccumulator::AddResult(const ScanResult& r) {
-  const bool trusted = r.pose_valid && (r.status == Status::kOk || r.status == Status::kDegenerate);
+  const bool trusted = r.pose_valid && !r.relocalized &&
+                       (r.status == Status::kOk || r.status == Status::kDegenerate);
   if (!trusted) return false;
   AddScan(r.deskewed_points_lidar, r.T_world_lidar);
   return true;

@@ -44,9 +44,10 @@ struct NodeConfig {
   bool publish_skeleton_planes = true;
   bool publish_registered_points = false;
   bool publish_odometry_imu_rate = true;
-  // Every scan with a trusted pose (status ok or degenerate) accumulated in the world (odom)
-  // frame, one point per map_voxel-sized voxel, written to map_file at shutdown and on SIGUSR1:
-  // binary PCD (.pcd) or binary PLY (.ply), as ppf_offline --map-out. "" = off.
+  // Every scan with a trusted pose (status ok or degenerate, not re-localized after a long gap)
+  // accumulated in the world (odom) frame, one point per map_voxel-sized voxel, written to
+  // map_file at shutdown and on SIGUSR1: binary PCD (.pcd) or binary PLY (.ply), as ppf_offline
+  // --map-out. "" = off.
   std::string map_file;
   double map_voxel = 0.1;  // m; as ppf_offline --map-voxel
 

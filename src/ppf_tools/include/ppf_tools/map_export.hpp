@@ -20,7 +20,8 @@ class MapAccumulator : public ppf::MapAccumulator {
   using ppf::MapAccumulator::MapAccumulator;
 
   // The result's de-skewed points (Config::output_deskewed_points) if the scan has a trusted
-  // pose: status kOk or kDegenerate with pose_valid. Returns whether they were added.
+  // pose: status kOk or kDegenerate with pose_valid, and not relocalized (a pose found again
+  // after a long gap extends no map of the core's either). Returns whether they were added.
   bool AddResult(const ScanResult& result);
 };
 

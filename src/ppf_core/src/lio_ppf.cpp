@@ -66,6 +66,7 @@ void LioPpf::Impl::ResetFilter(const std::string& reason) {
   imu_lost = false;
   fallback_scan = false;
   fallback_seeded = false;
+  relocalized_since_loss = false;
   imu_back = false;
   late_imu = false;
   world_is_map = false;
@@ -525,7 +526,12 @@ std::vector<ScanResult> LioPpf::Impl::Process(bool flush) {
 // until IMU samples are back from the start of the scan on.
 bool LioPpf::Impl::NeedsFallback(const DecodedScan& scan, bool may_declare) {
   if (!initialized || !map_initialized || lidar_only || moving_init) return false;
-  if (imu_lost) return !(imu_back && imu_back_stamp_s <= state.stamp_s + kResumeSlackS);
+  if (imu_lost) {
+    // A re-localized pose gives no velocity to resume from when the next scan comes this late
+    // (a core that fell behind dropped the scans between): re-localize again.
+    if (relocalized_since_loss && scan.t_end - state.stamp_s > config.max_imu_gap_s) return true;
+    return !(imu_back && imu_back_stamp_s <= state.stamp_s + kResumeSlackS);
+  }
   if (!may_declare || scan.t_end - last_imu_stamp <= config.imu_loss_timeout_s) return false;
   std::ostringstream os;
   os << "no IMU sample for " << scan.t_end - last_imu_stamp << " s > imu.loss_timeout "
@@ -538,6 +544,7 @@ void LioPpf::Impl::EnterImuLoss(const std::string& why) {
   imu_lost = true;
   imu_back = false;
   fallback_seeded = false;
+  relocalized_since_loss = false;
   Log(LogLevel::kWarn, "IMU lost (" + why +
                            "): continuing LiDAR-only (constant-velocity prediction; map, gravity "
                            "and biases kept) until IMU samples are back");

@@ -213,6 +213,7 @@ struct LioPpf::Impl {
   bool imu_back = false;         // samples arrived after the loss, the first at imu_back_stamp_s
   double imu_back_stamp_s = 0.0;
   double imu_loss_gap_s = 0.0;  // the gap in the IMU stream those samples ended
+  bool relocalized_since_loss = false;
   double fallback_dt = 0.0;     // interval of the last LiDAR-only scan (velocity at resume)
   StateCov P_before_loss = StateCov::Identity();  // biases' and gravity's, kept for the resume
   // A scan may resume LIO if the first IMU sample back is at most this much after its start: the

@@ -255,7 +255,16 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
   // The pose is as good as the last LiDAR-only update made it; the velocity is the difference
   // of two such poses over the scan interval. Neither is correlated with the rest any more.
   const Eigen::Matrix3d P_rot = state.P.block<3, 3>(kRot, kRot);
-  const Eigen::Matrix3d P_pos = state.P.block<3, 3>(kPos, kPos);
+  Eigen::Matrix3d P_pos = state.P.block<3, 3>(kPos, kPos);
+  // A re-localized pose is only as good as its guesses let it be: the update's covariance counts
+  // the rows as independent and claims centimetres along a street whose walls leave it free.
+  // Trusted so, the filter reads the remaining offset as velocity and drifts on with it; with the
+  // LiDAR-only prior's uncertainty back on the position it corrects the position instead.
+  if (relocalized_since_loss) {
+    P_pos += config.imu_loss_prior_pos_std * config.imu_loss_prior_pos_std *
+             Eigen::Matrix3d::Identity();
+  }
+  relocalized_since_loss = false;
   const double dt = std::max(fallback_dt, 1e-3);
   state.P = P_before_loss;
   for (int i : {static_cast<int>(kRot), static_cast<int>(kPos), static_cast<int>(kVel)}) {
@@ -514,6 +523,7 @@ void LioPpf::Impl::FinishLidarOnly(const CoarseAlignment& coarse, double t_end, 
 
 void LioPpf::Impl::ReportRelocalization(ScanResult* r) {
   r->relocalized = true;
+  relocalized_since_loss = true;
   std::ostringstream os;
   os.precision(3);
   os << "re-localized after " << fallback_dt << " s without data: " << r->motion_guess

@@ -147,9 +147,37 @@ CoarseAlignment AlignHypotheses(const ScanFrame& frame,
   KnnOptions wide = knn;
   wide.max_residual = std::max(knn.max_residual, options.coarse_max_residual);
   KnnResidualProvider provider(wide);
+  // Many guesses (a re-localization along a street after a long gap): a quick pass on a quarter
+  // of the sample with a few iterations ranks them, and only the best few are aligned in full,
+  // best first. Each full alignment costs as much as the whole quick pass over a dozen guesses,
+  // and a scan that takes seconds makes a node drop the scans after it.
+  constexpr size_t kScreenAbove = 16;
+  constexpr size_t kKeepAfterScreen = 4;
+  std::vector<size_t> order(hypotheses.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  if (hypotheses.size() > kScreenAbove) {
+    const ScanFrame quick_sample = SampleFrame(frame, std::max(1, options.coarse_points / 4));
+    IekfOptions quick = coarse;
+    quick.max_iterations = std::min(coarse.max_iterations, 3);
+    std::vector<std::pair<size_t, size_t>> ranked;  // (inliers, index)
+    for (size_t i = 0; i < hypotheses.size(); ++i) {
+      NavState s = StateAt(hypotheses[i].T_world_lidar, quick_sample.T_imu_lidar);
+      provider.BeginScan(quick_sample);
+      IekfUpdate(quick, quick_sample.T_imu_lidar, {&provider}, &s);
+      const FitScore score =
+          ScoreFit(quick_sample, s.T_world_imu() * quick_sample.T_imu_lidar, options, knn);
+      ranked.emplace_back(score.inliers, i);
+    }
+    const size_t keep = std::min(kKeepAfterScreen, ranked.size());
+    std::stable_sort(ranked.begin(), ranked.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    order.clear();
+    for (size_t k = 0; k < keep; ++k) order.push_back(ranked[k].second);
+    best.tried += static_cast<int>(hypotheses.size() - keep);
+  }
   size_t best_inliers = 0;
   bool have = false;
-  for (size_t i = 0; i < hypotheses.size(); ++i) {
+  for (size_t i : order) {
     NavState s = StateAt(hypotheses[i].T_world_lidar, sample.T_imu_lidar);
     provider.BeginScan(sample);
     IekfUpdate(coarse, sample.T_imu_lidar, {&provider}, &s);

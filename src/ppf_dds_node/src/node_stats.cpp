@@ -85,6 +85,7 @@ void NodeStats::CountResult(const ScanResult& r) {
   summary_.points_nonfinite += r.dropped_nan;
   summary_.points_bad_time += r.points_bad_time;
   summary_.lidar_overruled += r.overruled;
+  summary_.relocalized += r.relocalized;
   CountImuInput(r);
   if (r.imu_gap_s > 0.0) {
     ++summary_.imu_gaps_bridged;
@@ -237,7 +238,7 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " imu_conflicts_unresolved=" << s.imu_conflicts_unresolved << " imu_gaps=" << s.imu_gaps
     << " imu_gap_warn_max_s=" << s.imu_gap_warn_max_s
     << " imu_clock_offset_dropped=" << s.imu_clock_offset_dropped
-    << " lidar_overruled=" << s.lidar_overruled
+    << " lidar_overruled=" << s.lidar_overruled << " relocalized=" << s.relocalized
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

@@ -38,6 +38,9 @@ struct NodeSummary {
   // Scans whose IMU prediction the map contradicted and the LiDAR moved (ScanResult::overruled:
   // a jolt, a saturated gyro, a gap the IMU bridged wrongly); each also logs one WARN.
   uint64_t lidar_overruled = 0;
+  // Scans re-localized on the map after a gap longer than the IMU bridges (ScanResult::
+  // relocalized: both streams silent while moving); each also logs one WARN.
+  uint64_t relocalized = 0;
   uint64_t imu_duplicate = 0;     // same stamp and values as the sample before it: dropped
   // Stamps that came with different values (ScanResult::imu_conflicts): the core kept the copy
   // consistent with the samples on either side, or, unresolved, neither.

@@ -94,6 +94,17 @@ inline Scene MakeRoomScene() {
 
 using PoseFn = std::function<Eigen::Isometry3d(double)>;  // T_world_imu(t)
 
+// The angle of a rotation, degrees.
+inline double Deg(const Eigen::Matrix3d& R) { return SO3Log(R).norm() * 180.0 / M_PI; }
+
+// A pose from a position and a rotation vector.
+inline Eigen::Isometry3d Pose(const Eigen::Vector3d& p, const Eigen::Vector3d& rotvec) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = SO3Exp(rotvec);
+  T.translation() = p;
+  return T;
+}
+
 inline Eigen::Isometry3d MakePose(const Eigen::Vector3d& p, double roll, double pitch,
                                   double yaw) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

@@ -16,14 +16,8 @@
 namespace ppf {
 namespace {
 
-double Deg(const Eigen::Matrix3d& R) { return SO3Log(R).norm() * 180.0 / M_PI; }
-
-Eigen::Isometry3d Pose(const Eigen::Vector3d& p, const Eigen::Vector3d& rotvec) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = SO3Exp(rotvec);
-  T.translation() = p;
-  return T;
-}
+using test::Deg;
+using test::Pose;
 
 struct RoomFixture {
   test::Scene scene = test::MakeRoomScene();

@@ -7,18 +7,13 @@
 
 #include "ppf_core/lio/motion_model.hpp"
 #include "ppf_core/lio/so3.hpp"
+#include "synthetic.hpp"
 
 namespace ppf {
 namespace {
 
-double Deg(const Eigen::Matrix3d& R) { return SO3Log(R).norm() * 180.0 / M_PI; }
-
-Eigen::Isometry3d Pose(const Eigen::Vector3d& p, const Eigen::Vector3d& rotvec) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = SO3Exp(rotvec);
-  T.translation() = p;
-  return T;
-}
+using test::Deg;
+using test::Pose;
 
 // A constant body twist continues: two poses 0.5 s apart predict the third exactly, and the
 // de-skew trace passes through both ends.

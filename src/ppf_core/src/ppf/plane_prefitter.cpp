@@ -31,7 +31,8 @@ const char* PrefitStopName(PrefitStop stop) {
 PlanePrefitter::PlanePrefitter(const PpfConfig& config) : config_(config) {}
 
 bool PlanePrefitter::SplitAndCheckShape(const Plane& plane) {
-  SplitSandwich(remaining_, plane, config_.delta, config_.semi_band_factor, &split_);
+  // Strict inliers only: the semi-inliers and outliers are listed once the plane is accepted.
+  LabelSandwich(remaining_, plane, config_.delta, config_.semi_band_factor, &labels_, &split_);
   // Thickness first: it needs no trigonometry and rejects most slabs through vegetation.
   if (config_.max_band_rms_ratio > 0.0 && !split_.strict.empty()) {
     double sum = 0.0, sum2 = 0.0;
@@ -98,16 +99,24 @@ void PlanePrefitter::Accept(const Plane& plane, bool from_guess, int64_t track_i
     const Eigen::Vector3d q = remaining_[pos].cast<double>() - fitted.centroid;
     fitted.scatter.noalias() += q * q.transpose();
   }
-  for (int pos : split_.semi) result->discarded_indices.push_back(remaining_index_[pos]);
   result->planes.push_back(fitted);
 
+  // One pass over the labels: the semi-inliers are discarded, the outliers stay for the next
+  // round (no lists of either in between).
+  constexpr uint8_t kSemi = static_cast<uint8_t>(SandwichClass::kSemi);
+  constexpr uint8_t kOutlier = static_cast<uint8_t>(SandwichClass::kOutlier);
+  const size_t n = std::min(labels_.size(), remaining_.size());
   next_points_.clear();
   next_index_.clear();
-  next_points_.reserve(split_.outliers.size());
-  next_index_.reserve(split_.outliers.size());
-  for (int pos : split_.outliers) {
-    next_points_.push_back(remaining_[pos]);
-    next_index_.push_back(remaining_index_[pos]);
+  next_points_.reserve(n - std::min(n, split_.strict.size()));
+  next_index_.reserve(n - std::min(n, split_.strict.size()));
+  for (size_t pos = 0; pos < n; ++pos) {
+    if (labels_[pos] == kSemi) {
+      result->discarded_indices.push_back(remaining_index_[pos]);
+    } else if (labels_[pos] == kOutlier) {
+      next_points_.push_back(remaining_[pos]);
+      next_index_.push_back(remaining_index_[pos]);
+    }
   }
   remaining_.swap(next_points_);
   remaining_index_.swap(next_index_);

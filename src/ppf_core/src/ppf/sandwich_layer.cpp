@@ -4,13 +4,14 @@
 
 namespace ppf {
 
-void SplitSandwich(const std::vector<Eigen::Vector3f>& points, const Plane& plane, double delta,
-                   double semi_factor, SandwichSplit* split) {
+void LabelSandwich(const std::vector<Eigen::Vector3f>& points, const Plane& plane, double delta,
+                   double semi_factor, std::vector<uint8_t>* labels, SandwichSplit* split) {
   split->strict.clear();
   split->semi.clear();
   split->outliers.clear();
   const long n = static_cast<long>(points.size());
-  std::vector<uint8_t> label(points.size());
+  labels->resize(points.size());
+  uint8_t* label = labels->data();
   const float nx = static_cast<float>(plane.n.x()), ny = static_cast<float>(plane.n.y()),
               nz = static_cast<float>(plane.n.z()), d = static_cast<float>(plane.d);
   const float strict = static_cast<float>(delta);
@@ -25,19 +26,28 @@ void SplitSandwich(const std::vector<Eigen::Vector3f>& points, const Plane& plan
   }
   // Serial compaction keeps the order deterministic; it is a cheap linear pass.
   for (long i = 0; i < n; ++i) {
-    const int idx = static_cast<int>(i);
-    switch (label[i]) {
-      case 0:
-        split->strict.push_back(idx);
-        break;
-      case 1:
-        split->semi.push_back(idx);
-        break;
-      default:
-        split->outliers.push_back(idx);
-        break;
+    if (label[i] == 0) split->strict.push_back(static_cast<int>(i));
+  }
+}
+
+void CompleteSandwich(const std::vector<uint8_t>& labels, SandwichSplit* split) {
+  split->semi.clear();
+  split->outliers.clear();
+  const long n = static_cast<long>(labels.size());
+  for (long i = 0; i < n; ++i) {
+    if (labels[i] == 1) {
+      split->semi.push_back(static_cast<int>(i));
+    } else if (labels[i] == 2) {
+      split->outliers.push_back(static_cast<int>(i));
     }
   }
+}
+
+void SplitSandwich(const std::vector<Eigen::Vector3f>& points, const Plane& plane, double delta,
+                   double semi_factor, SandwichSplit* split) {
+  std::vector<uint8_t> labels;
+  LabelSandwich(points, plane, delta, semi_factor, &labels, split);
+  CompleteSandwich(labels, split);
 }
 
 }  // namespace ppf

@@ -91,11 +91,12 @@ class PlanePrefitter {
                   PrefitResult* result);
   // New planes by RANSAC until a stop condition.
   void FitNewPlanes(int least, double min_remaining, PrefitResult* result);
-  // Splits the working set by the sandwich of `plane` (into split_) and returns whether its strict
-  // inliers pass the shape tests (max_band_rms_ratio, min_elevation_spread_deg; ppf_config.hpp).
+  // Classifies the working set by the sandwich of `plane` (labels_; its strict inliers into
+  // split_.strict) and returns whether those pass the shape tests (max_band_rms_ratio,
+  // min_elevation_spread_deg; ppf_config.hpp).
   bool SplitAndCheckShape(const Plane& plane);
-  // Removes the sandwich of `plane` (split_, from SplitAndCheckShape) from the working set;
-  // records the plane.
+  // Removes the sandwich of `plane` (split_ and labels_, from SplitAndCheckShape) from the
+  // working set; records the plane.
   void Accept(const Plane& plane, bool from_guess, int64_t track_id, int ipca_iterations,
               PrefitResult* result);
   // Moves the strict band of `plane` to the scattered points and keeps the rest for later rounds.
@@ -108,6 +109,7 @@ class PlanePrefitter {
   std::vector<Eigen::Vector3f> next_points_;
   std::vector<int> next_index_;
   SandwichSplit split_;
+  std::vector<uint8_t> labels_;  // SandwichClass of each working point, from SplitAndCheckShape
   std::vector<float> elevation_;  // scratch of SplitAndCheckShape, radians
 };
 

@@ -41,4 +41,13 @@ inline SandwichClass ClassifySandwich(double signed_distance, double delta, doub
 void SplitSandwich(const std::vector<Eigen::Vector3f>& points, const Plane& plane, double delta,
                    double semi_factor, SandwichSplit* split);
 
+// SplitSandwich in two steps, for a caller that tests the strict inliers before it needs the rest
+// (a plane refused for its shape never needs its semi-inlier and outlier lists, which hold most of
+// the points): LabelSandwich classifies every point into `labels` (SandwichClass values) and fills
+// split->strict only, clearing the other lists; CompleteSandwich then fills split->semi and
+// split->outliers from those labels. Together they give SplitSandwich's lists.
+void LabelSandwich(const std::vector<Eigen::Vector3f>& points, const Plane& plane, double delta,
+                   double semi_factor, std::vector<uint8_t>* labels, SandwichSplit* split);
+void CompleteSandwich(const std::vector<uint8_t>& labels, SandwichSplit* split);
+
 }  // namespace ppf

@@ -120,7 +120,9 @@ TEST_P(Disturbance, CorrectedWithinOneSecond) {
     if (c.tilt_margin_deg >= 0.0) {
       EXPECT_LE(r.max_tilt_deg, r0.max_tilt_deg + c.tilt_margin_deg) << "relocated tilted";
     }
-    if (c.ape_factor >= 0.0) EXPECT_LE(o.ape, c.ape_factor * clean.ape) << "APE";
+    if (c.ape_factor >= 0.0) {
+      EXPECT_LE(o.ape, c.ape_factor * clean.ape) << "APE";
+    }
     return;
   }
   EXPECT_LE(r.max_heading_deg, 0.2 + r0.max_heading_deg) << "heading not corrected within 1 s";

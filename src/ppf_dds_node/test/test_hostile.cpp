@@ -461,8 +461,10 @@ TEST(Hostile, ImuClockBehindTheLidarIsNamedAndTheNodeGoesOnLidarOnly) {
   // The one restart the node makes for an IMU time jump back.
   EXPECT_EQ(SummaryField(s, "resets"), 1);
   EXPECT_EQ(CountLinesWith(log, "core restarted"), 1) << log;
-  // The offset named once, with its size (scan end minus the newest IMU sample).
-  const std::regex warn_re("core: IMU clock ([0-9.]+) s behind the LiDAR's");
+  // The offset named once, with its size (scan end minus the newest IMU sample). A core slow
+  // enough (a sanitizer build beside other tests) may have initialized LIO on the restarted
+  // stream before its 10 judged scans: the WARN is then the IMU-loss one naming the offset.
+  const std::regex warn_re("IMU clock ([0-9.]+) s behind the LiDAR's");
   std::smatch m;
   ASSERT_TRUE(std::regex_search(log, m, warn_re)) << log;
   EXPECT_NEAR(std::stod(m[1]), 5.0, 0.2) << m[0];

@@ -53,10 +53,8 @@ void LioPpf::Impl::PredictConstantVelocity(double t_end, PoseTrace* trace) {
 // not take back and the resumed filter then keeps. The path follows the heading's turn at the
 // speed the filter had.
 Eigen::Isometry3d LioPpf::Impl::ExtrapolateModel(double t_end) const {
+  if (!Relocating() || state.gravity_world.norm() < 1.0) return motion.Predict(t_end);
   const double dt = t_end - motion.stamp();
-  if (!fallback_scan || dt <= config.max_imu_gap_s || state.gravity_world.norm() < 1.0) {
-    return motion.Predict(t_end);
-  }
   const Eigen::Isometry3d T_last = motion.pose();
   const Eigen::Vector3d up = -state.gravity_world.normalized();
   // Swing-twist: the part of the extrapolated turn about `up`.

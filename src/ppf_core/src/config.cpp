@@ -1,5 +1,6 @@
 #include "ppf_core/config.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 
@@ -132,6 +133,7 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("imu.gyro_bias_noise", &c->noise.gyro_bias);
   t.Add("imu.acc_bias_noise", &c->noise.acc_bias);
   t.Add("imu.gravity_dir_noise", &c->noise.gravity_dir);
+  t.Add("imu.gyro_range", &c->noise.gyro_range);
   t.Add("imu.max_gap", &c->max_imu_gap_s);
   t.Add("imu.max_gap_warn", &c->imu_max_gap_warn_s);
   t.Add("imu.max_gap_bridge", &c->max_imu_gap_bridge_s);
@@ -314,6 +316,8 @@ void ValidateImu(Config* c, Fixer& fix) {
   fix(!(c->noise.gyro_bias >= 0.0), "imu.gyro_bias_noise", &c->noise.gyro_bias, 1e-4);
   fix(!(c->noise.acc_bias >= 0.0), "imu.acc_bias_noise", &c->noise.acc_bias, 1e-3);
   fix(!(c->noise.gravity_dir >= 0.0), "imu.gravity_dir_noise", &c->noise.gravity_dir, 0.0);
+  fix(!(c->noise.gyro_range >= 0.0) || !std::isfinite(c->noise.gyro_range), "imu.gyro_range",
+      &c->noise.gyro_range, 0.0);
 }
 
 void ValidateIekfAndKnn(Config* c, Fixer& fix) {

@@ -133,7 +133,7 @@ struct LioPpf::Impl {
   void ExtendMap(const IekfReport& rep, const Eigen::Isometry3d& T_world_lidar, ScanResult* r);
   Eigen::Isometry3d WorldFromMap() const;
   void FillState(ScanResult* r) const;
-  void WidenForGap(double gap_s);
+  void WidenForGap(double from_s, double to_s);
   void InsertScattered(const ScanFrame& f, const Eigen::Isometry3d& T_world_lidar, ScanResult* r);
   void SeedFallback();
   void ResumeLio(ScanResult* r);
@@ -160,6 +160,8 @@ struct LioPpf::Impl {
   void AddAlongTrackGuesses(const Eigen::Isometry3d& T_world_lidar, const Eigen::Vector3d& v_world,
                             double dt, std::vector<MotionHypothesis>* h) const;
   void RedeskewLidarOnly(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end);
+  void CorrectSaturatedTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
+                            double t_end, ScanResult* r);
 
   Config config;
   TimeFieldDecoder decoder;
@@ -173,9 +175,14 @@ struct LioPpf::Impl {
   struct BridgedGap {
     double begin_s;  // last IMU stamp before the gap
     double length_s;
+    double widened_s = 0.0;  // the part of it the scans propagated so far crossed
   };
   std::deque<BridgedGap> bridged_gaps;  // not yet propagated across
   NavState state;
+  // The last propagation's gyro saturation, and what it started from (CorrectSaturatedTurn).
+  GyroSaturation saturation;
+  NavState saturation_start;
+  std::vector<ImuSample> saturation_samples;
   ScanFrame frame;
   VoxelGridDownsampler downsampler;  // keeps its hash table between scans
   bool initialized = false;

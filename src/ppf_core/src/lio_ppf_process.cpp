@@ -51,6 +51,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   PoseTrace trace;
   const double t_end = Propagate(scan, lidar, &trace, &r);
   Deskew(scan, pts, trace, t_end);
+  if (!lidar) CorrectSaturatedTurn(scan, pts, t_end, &r);
   r.timings.deskew = MsSince(t0);
   last_scan_end = t_end;
   r.stamp_s = t_end;
@@ -151,7 +152,13 @@ double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* t
     }
   } else {
     std::vector<ImuSample> samples(imu.begin(), imu.end());
-    PropagateImu(samples, t_end, acc_scale, config.noise, &state, trace);
+    const NavState start = state;
+    PropagateImu(samples, t_end, acc_scale, config.noise, &state, trace, &saturation);
+    r->gyro_saturated_s = saturation.seconds;
+    if (saturation.seconds > 0.0) {
+      saturation_start = start;
+      saturation_samples = samples;
+    }
     for (const ImuSample& s : samples) {
       if (s.stamp_s > t_end && s.stamp_s != samples.front().stamp_s) break;
       gyro_at_scan_end = s.angular_velocity;
@@ -162,9 +169,18 @@ double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* t
     os << "IMU extrapolated by " << t_end - last_imu_stamp << " s (last sample held)";
     Append(&r->reason, os.str());
   }
+  // Each scan propagated across part of a bridged gap widens for that part: widened all at once,
+  // the first scan would take the whole gap's uncertainty for the few milliseconds it crossed,
+  // and the scans inside the gap none.
   while (!bridged_gaps.empty() && bridged_gaps.front().begin_s < t_end) {
-    WidenForGap(bridged_gaps.front().length_s);
-    r->imu_gap_s = std::max(r->imu_gap_s, bridged_gaps.front().length_s);
+    BridgedGap& gap = bridged_gaps.front();
+    if (gap.widened_s == 0.0) r->imu_gap_s = std::max(r->imu_gap_s, gap.length_s);
+    const double crossed = std::min(t_end - gap.begin_s, gap.length_s);
+    if (crossed > gap.widened_s) {
+      WidenForGap(gap.widened_s, crossed);
+      gap.widened_s = crossed;
+    }
+    if (crossed < gap.length_s) break;
     bridged_gaps.pop_front();
   }
   if (r->imu_gap_s > 0.0) {
@@ -184,6 +200,86 @@ void LioPpf::Impl::Deskew(const DecodedScan& scan, const std::vector<TimedPoint>
     frame.points_lidar.reserve(pts.size());
     for (const TimedPoint& tp : pts) frame.points_lidar.push_back(tp.p);
   }
+}
+
+// A gyro axis read at saturation while predicting this scan: the turn beyond the reading is
+// unknown, and the scan was de-skewed without it, smeared by as much as it turned. The scan alone
+// (a few Gauss-Newton steps on the map, wide gate, no prior) measures the missing turn at the
+// scan end; read as a rate beyond each saturated reading (least squares over the saturated axes,
+// never against the reading's direction), it goes into those samples only, and propagation and
+// de-skew run again. The rotation covariance keeps its widening: the update still decides.
+void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan,
+                                        const std::vector<TimedPoint>& pts, double t_end,
+                                        ScanResult* r) {
+  if (!(saturation.seconds > 0.0) || !map_initialized || r->imu_gap_s > 0.0) return;
+  constexpr int kPasses = 2;
+  constexpr int kSteps = 4;
+  constexpr double kMinTurnRad = 0.2 * M_PI / 180.0;
+  const Eigen::Isometry3d& T_il = config.T_imu_lidar;
+  const double wide = config.lidar_only.coarse_max_residual;
+  Eigen::Matrix<double, 6, 1> excess = Eigen::Matrix<double, 6, 1>::Zero();
+  double first_turn_deg = 0.0;
+  for (int pass = 0; pass < kPasses; ++pass) {
+    frame.map = &map;
+    frame.T_imu_lidar = T_il;
+    const ScanFrame sample = SampleFrame(frame, config.consistency.fit_points);
+    Eigen::Isometry3d T = state.T_world_imu() * T_il;
+    const Eigen::Matrix3d R_predicted = T.linear();
+    for (int k = 0; k < kSteps; ++k) {
+      const PoseProbe p =
+          ProbePose(sample, T, config.lidar_only, config.knn, config.iekf, wide);
+      if (p.step_rot.norm() < 1e-4 && p.step_pos.norm() < 1e-3) break;
+      const Eigen::Matrix3d dR = SO3Exp(p.step_rot);
+      T.linear() = NormalizeRotation(dR * T.linear());
+      T.translation() += p.step_pos;
+    }
+    const Eigen::Vector3d turn = SO3Log(T.linear() * R_predicted.transpose());
+    if (pass == 0) first_turn_deg = turn.norm() * 180.0 / M_PI;
+    if (turn.norm() < kMinTurnRad) break;
+    // Non-negative least squares over the saturated columns (one or two in practice): solve,
+    // drop the columns that come out negative, solve again.
+    std::vector<int> cols;
+    for (int c = 0; c < 6; ++c) {
+      if (saturation.turn_per_rate.col(c).norm() > 1e-6) cols.push_back(c);
+    }
+    Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();
+    for (int round = 0; round < 2 && !cols.empty(); ++round) {
+      Eigen::MatrixXd U(3, cols.size());
+      for (size_t i = 0; i < cols.size(); ++i) U.col(i) = saturation.turn_per_rate.col(cols[i]);
+      const Eigen::VectorXd xi = (U.transpose() * U +
+                                  1e-9 * Eigen::MatrixXd::Identity(cols.size(), cols.size()))
+                                     .ldlt()
+                                     .solve(U.transpose() * turn);
+      std::vector<int> kept;
+      x.setZero();
+      for (size_t i = 0; i < cols.size(); ++i) {
+        if (xi(i) > 0.0) {
+          kept.push_back(cols[i]);
+          x(cols[i]) = xi(i);
+        }
+      }
+      if (kept.size() == cols.size()) break;
+      cols = kept;
+    }
+    // A rate beyond twice full scale is no saturation this model explains.
+    for (int c = 0; c < 6; ++c) x(c) = std::min(x(c), saturation.reading(c));
+    if (x.isZero()) break;
+    excess += x;
+    std::vector<ImuSample> samples = saturation_samples;
+    AddUnmeasuredRate(excess, config.noise.gyro_range, &samples);
+    state = saturation_start;
+    PoseTrace trace;
+    GyroSaturation again;
+    PropagateImu(samples, t_end, acc_scale, config.noise, &state, &trace, &again);
+    Deskew(scan, pts, trace, t_end);
+  }
+  std::ostringstream os;
+  os << "gyro saturated for " << saturation.seconds << " s, the scan alone turns the prediction by "
+     << first_turn_deg << " deg";
+  if (!excess.isZero()) {
+    os << ": the scan showed up to " << excess.maxCoeff() << " rad/s beyond the reading";
+  }
+  Append(&r->reason, os.str());
 }
 
 // The map's first scan, inserted at the predicted pose: it defines the map frame.
@@ -584,14 +680,19 @@ void LioPpf::Impl::FillState(ScanResult* r) const {
 
 // The IMU did not measure the motion during a gap: integration across it assumed the samples on
 // either side held throughout. Allow a constant unmeasured acceleration and turn rate for its
-// length, so the registration of the next scan can move the pose as far as that explains.
-void LioPpf::Impl::WidenForGap(double gap_s) {
-  const double rot = config.gap_gyro_std * gap_s;
-  const double vel = config.gap_acc_std * gap_s;
-  const double pos = 0.5 * config.gap_acc_std * gap_s * gap_s;
-  state.P.block<3, 3>(kRot, kRot).diagonal().array() += rot * rot;
-  state.P.block<3, 3>(kVel, kVel).diagonal().array() += vel * vel;
-  state.P.block<3, 3>(kPos, kPos).diagonal().array() += pos * pos;
+// length, so the registration of the scans across it can move the pose as far as that explains.
+// A scan that crossed the gap from from_s to to_s seconds after its start adds the growth of
+// that uncertainty over its part: the whole gap adds what a constant error over it gives.
+void LioPpf::Impl::WidenForGap(double from_s, double to_s) {
+  auto grown = [&](double std_per_s, double power) {
+    return std_per_s * std_per_s * (std::pow(to_s, 2.0 * power) - std::pow(from_s, 2.0 * power));
+  };
+  const double rot = grown(config.gap_gyro_std, 1.0);
+  const double vel = grown(config.gap_acc_std, 1.0);
+  const double pos = grown(0.5 * config.gap_acc_std, 2.0);
+  state.P.block<3, 3>(kRot, kRot).diagonal().array() += rot;
+  state.P.block<3, 3>(kVel, kVel).diagonal().array() += vel;
+  state.P.block<3, 3>(kPos, kPos).diagonal().array() += pos;
 }
 
 void LioPpf::Impl::InsertScattered(const ScanFrame& f, const Eigen::Isometry3d& T_world_lidar,

@@ -75,6 +75,10 @@ void WriteCalibration(const SimConfig& cfg, const ScanOptions& so) {
       << "    quaternion_wxyz: " << Vec(qw, 4, 15) << "\n"
       << "    # same rotation as rpy_deg [roll, pitch, yaw] (R = Rz Ry Rx): [" << e[2] << ", "
       << e[1] << ", " << e[0] << "]\n";
+  if (cfg.disturbances.gyro_range > 0.0) {
+    // The IMU's datasheet full scale, as a user would configure it.
+    cal << "imu:\n  gyro_range: " << cfg.disturbances.gyro_range << "\n";
+  }
 }
 
 // sequence.yaml: sensors, noise, ground truth and scenario of the sequence.

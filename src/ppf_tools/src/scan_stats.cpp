@@ -30,7 +30,7 @@ void WriteStatsCsvHeader(std::ostream& os) {
         "skeleton_patches,gyro_bias_x,gyro_bias_y,gyro_bias_z,acc_bias_x,acc_bias_y,acc_bias_z,"
         "gravity_map_x,gravity_map_y,gravity_map_z,skeleton_planes,fit,motion_guess,"
         "guesses_tried,t_guesses_ms,correction_rot_deg,correction_pos_m,overruled,"
-        "disagreement_rot_deg,disagreement_pos_m\n";
+        "disagreement_rot_deg,disagreement_pos_m,gyro_saturated_s\n";
 }
 
 void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
@@ -56,6 +56,8 @@ void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
   // How far the LiDAR moved the prediction, and whether it overruled it (Config::consistency).
   os << std::setprecision(4) << ',' << r.correction_rot_deg << ',' << r.correction_pos_m << ','
      << (r.overruled ? 1 : 0) << ',' << r.disagreement_rot_deg << ',' << r.disagreement_pos_m;
+  // How long a gyro axis read at saturation in this scan's prediction (imu.gyro_range).
+  os << ',' << r.gyro_saturated_s;
   os << '\n';
 }
 

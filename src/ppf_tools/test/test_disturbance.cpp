@@ -121,7 +121,7 @@ TEST_P(Disturbance, CorrectedWithinOneSecond) {
       EXPECT_LE(r.max_tilt_deg, r0.max_tilt_deg + c.tilt_margin_deg) << "relocated tilted";
     }
     if (c.ape_factor >= 0.0) {
-      EXPECT_LE(o.ape, c.ape_factor * clean.ape) << "APE";
+      EXPECT_LE(o.ape, c.ape_factor * clean.ape + 0.002) << "APE";
     }
     return;
   }
@@ -160,20 +160,22 @@ INSTANTIATE_TEST_SUITE_P(
              0.05, 0.3, 5.5},
         Case{"silence3_ppf", kUrban, "vlp16", 12, "--silence 6:3", 9, kPpf, Case::kRelocated,
              0.05, 0.3, 5.5},
-        // An IMU gap of 0.5 s in the first turn (14-17 s), bridged by integration: heading and
-        // APE (1.1x) within the bounds; 0.09 m of position and 0.12 deg of tilt stay (not yet).
+        // An IMU gap of 0.5 s in the first turn (14-17 s), bridged by integration, each scan
+        // across it widened for its part of the gap: heading, position and APE within the full
+        // bounds; the tilt up to 0.1 deg above the undisturbed run's (not yet the full bound).
         Case{"turn_imu_gap_knn", kUrban, "vlp16", 24, "--imu-gap 15:0.5", 15, kKnn,
-             Case::kRelocated, 0.1},
+             Case::kRelocated, 0.05, 0.15, 1.2},
         Case{"turn_imu_gap_ppf", kUrban, "vlp16", 24, "--imu-gap 15:0.5", 15, kPpf,
-             Case::kRelocated, 0.1},
-        // A gyro saturating at 2 rad/s on a hand-held walk (its shake peaks at 2.6 rad/s): every
-        // peak turns the prediction by degrees within a scan, corrected at the next; with the
-        // check off the heading error reaches tens of degrees. Heading and position from 1 s on
-        // hold; APE is 3x the undisturbed run's, the tilt up to 1.5 deg (not yet).
+             Case::kRelocated, 0.05, 0.15, 1.2},
+        // A gyro saturating at 2 rad/s on a hand-held walk (its shake peaks at 2.6 rad/s): each
+        // saturated reading's missing turn is measured by the scan alone and its de-skew redone
+        // (imu.gyro_range). Position, APE (1.1x) and heading 1 s after within the full bounds; a
+        // scan whose smeared points hide the missing turn keeps degrees of heading and up to
+        // 0.2 deg of tilt until the next (not yet the full bounds).
         Case{"handheld_gyro_range_knn", kHandheld, "vlp16", 20, "--gyro-range 2", 5, kKnn,
-             Case::kRelocated, 0.1},
-        Case{"handheld_gyro_range_knn_check_off", kHandheld, "vlp16", 20, "--gyro-range 2", 5,
-             kKnn, Case::kCheckOff}),
+             Case::kRelocated, 0.05, 0.3, 1.2},
+        Case{"handheld_gyro_range_ppf", kHandheld, "vlp16", 20, "--gyro-range 2", 5, kPpf,
+             Case::kRelocated, 0.05, 0.3, 1.2}),
     [](const ::testing::TestParamInfo<Case>& info) { return info.param.name; });
 
 }  // namespace

@@ -153,6 +153,12 @@ struct ImuNoise {
   // rad/sqrt(s): random walk of the gravity direction in the map frame (0: a fixed direction,
   // estimated once). Non-zero lets it follow a map that tilts slowly over a long drive.
   double gravity_dir = 0.0;
+  // rad/s: the gyro's full scale (datasheet). A reading at it is a bound, not a measurement: the
+  // turn beyond it is unknown, so the rotation it integrates is widened and the scan measures it
+  // (imu_propagation.hpp, docs/behaviour.md "Gyro saturation"). 0 = unknown: no reading is taken
+  // for saturated (a repeated reading is no sign of it: quantized gyros repeat values while
+  // turning steadily).
+  double gyro_range = 0.0;
 };
 
 // --- options of iekf.hpp (the iterated update) --------------------------------------------------

@@ -1,6 +1,8 @@
 #include "ppf_core/lio/imu_propagation.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 
 #include "ppf_core/lio/so3.hpp"
 
@@ -44,9 +46,42 @@ ImuSample InterpolateImu(const std::vector<ImuSample>& samples, double t) {
   return s;
 }
 
+std::vector<uint8_t> SaturatedGyroAxes(const std::vector<ImuSample>& samples, double gyro_range) {
+  std::vector<uint8_t> axes(samples.size(), 0);
+  if (!(gyro_range > 0.0)) return axes;
+  // A reading converted from the top code of the sensor's ADC may sit a hair below full scale.
+  const double at = gyro_range * (1.0 - 1e-3);
+  for (size_t i = 0; i < samples.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      if (std::abs(samples[i].angular_velocity[k]) >= at) axes[i] |= 1u << k;
+    }
+  }
+  return axes;
+}
+
+void AddUnmeasuredRate(const Eigen::Matrix<double, 6, 1>& excess, double gyro_range,
+                       std::vector<ImuSample>* samples) {
+  const std::vector<uint8_t> saturated = SaturatedGyroAxes(*samples, gyro_range);
+  for (size_t i = 0; i < samples->size(); ++i) {
+    for (int j = 0; j < 3; ++j) {
+      if (!(saturated[i] & (1u << j))) continue;
+      double& w = (*samples)[i].angular_velocity[j];
+      w += w > 0.0 ? excess(2 * j) : -excess(2 * j + 1);
+    }
+  }
+}
+
 void PropagateImu(const std::vector<ImuSample>& samples, double t_end, double acc_scale,
-                  const ImuNoise& noise, NavState* state, PoseTrace* trace) {
+                  const ImuNoise& noise, NavState* state, PoseTrace* trace,
+                  GyroSaturation* saturation) {
   const double t0 = state->stamp_s;
+  // Gyro saturation: the true rate lies beyond the reading by an unknown amount of the same sign
+  // for the whole episode, so its rotation error adds up coherently rather than like white noise.
+  // Summed per axis and sign in the world frame (the body turns meanwhile) and added to the
+  // rotation covariance at the end: the registration of this scan may then turn the pose as far
+  // as a rate up to 1.5x the reading explains (one sigma: half the reading).
+  const std::vector<uint8_t> saturated = SaturatedGyroAxes(samples, noise.gyro_range);
+  GyroSaturation sat;
   std::vector<double> times;
   times.push_back(t0);
   for (const ImuSample& s : samples) {
@@ -67,6 +102,24 @@ void PropagateImu(const std::vector<ImuSample>& samples, double t_end, double ac
     const Eigen::Matrix3d R0 = state->R_world_imu;
     const Eigen::Matrix3d R1 = NormalizeRotation(R0 * SO3Exp(w * dt));
     const Eigen::Vector3d a_world = 0.5 * (R0 * a0 + R1 * a1) + state->gravity_world;
+    if (!samples.empty()) {
+      // The samples the segment interpolates between (or holds beyond the ends).
+      const double tm = 0.5 * (times[k] + times[k + 1]);
+      const size_t ib = std::upper_bound(samples.begin(), samples.end(), tm,
+                                         [](double v, const ImuSample& s) { return v < s.stamp_s; }) -
+                        samples.begin();
+      const size_t ia = ib == 0 ? 0 : ib - 1;
+      const size_t ic = std::min(ib, samples.size() - 1);
+      const uint8_t axes = saturated[ia] | saturated[ic];
+      if (axes) sat.seconds += dt;
+      for (int j = 0; j < 3; ++j) {
+        if (!(axes & (1u << j))) continue;
+        const double w = samples[(saturated[ia] & (1u << j)) ? ia : ic].angular_velocity[j];
+        const int c = 2 * j + (w > 0.0 ? 0 : 1);
+        sat.turn_per_rate.col(c) += R0.col(j) * (w > 0.0 ? dt : -dt);
+        sat.reading(c) = std::max(sat.reading(c), std::abs(w));
+      }
+    }
 
     if (trace) {
       knot.t = times[k];
@@ -99,6 +152,12 @@ void PropagateImu(const std::vector<ImuSample>& samples, double t_end, double ac
     state->R_world_imu = R1;
     m0 = m1;
   }
+  if (sat.seconds > 0.0) {
+    const Eigen::Matrix<double, 3, 6> body = state->R_world_imu.transpose() * sat.turn_per_rate *
+                                             (0.5 * sat.reading).asDiagonal();
+    state->P.block<3, 3>(kRot, kRot) += body * body.transpose();
+  }
+  if (saturation) *saturation = sat;
   if (t_end > t0) state->stamp_s = t_end;
   if (trace) {
     // Closing knot: extrapolation past the end keeps the last segment's rate and acceleration.

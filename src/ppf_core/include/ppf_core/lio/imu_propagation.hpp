@@ -14,6 +14,7 @@
 // straight down (ScanResult::T_world_map, lio_ppf.hpp).
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include <Eigen/Core>
@@ -68,7 +69,28 @@ ImuSample InterpolateImu(const std::vector<ImuSample>& samples, double t);
 // Appends knots to *trace (if non-null), the first at the start time. Midpoint rule per segment:
 //   w = (w_k + w_k+1)/2 - bg, R_k+1 = R_k Exp(w dt),
 //   a = (R_k (a_k - ba) + R_k+1 (a_k+1 - ba))/2 + g, p += v dt + a dt^2/2, v += a dt.
+// What a saturated gyro left unmeasured over one propagation. The true rate lies beyond the
+// reading, in its direction, by an unknown amount that holds through the episode.
+struct GyroSaturation {
+  double seconds = 0.0;  // time during which some axis read at saturation
+  // Column 2 * axis + (reading > 0 ? 0 : 1): the world-frame rotation (rad) that 1 rad/s more than
+  // the reading, in the reading's direction, would have added by the end of the propagation.
+  Eigen::Matrix<double, 3, 6> turn_per_rate = Eigen::Matrix<double, 3, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> reading = Eigen::Matrix<double, 6, 1>::Zero();  // |reading|, rad/s
+};
+
+// Gyro axes at saturation (ImuNoise::gyro_range) get their unmeasured turn added to the rotation
+// covariance (one sigma: half the reading); *saturation (if non-null) says what was unmeasured.
 void PropagateImu(const std::vector<ImuSample>& samples, double t_end, double acc_scale,
-                  const ImuNoise& noise, NavState* state, PoseTrace* trace);
+                  const ImuNoise& noise, NavState* state, PoseTrace* trace,
+                  GyroSaturation* saturation = nullptr);
+
+// Per sample, a bit per gyro axis (1 << axis) that reads at saturation (ImuNoise::gyro_range).
+std::vector<uint8_t> SaturatedGyroAxes(const std::vector<ImuSample>& samples, double gyro_range);
+
+// Adds excess(c) rad/s, in the reading's direction, to every saturated reading of column c
+// (GyroSaturation's order): the rate the gyro could not report, once something else measured it.
+void AddUnmeasuredRate(const Eigen::Matrix<double, 6, 1>& excess, double gyro_range,
+                       std::vector<ImuSample>* samples);
 
 }  // namespace ppf

@@ -124,10 +124,10 @@ void LioPpf::Impl::Preprocess(const QueuedScan& q, std::vector<TimedPoint>* pts,
   const DecodedScan& scan = q.scan;
   auto t0 = Clock::now();
   PreprocessOptions pre;
-  pre.min_range = config.min_range;
-  pre.max_range = config.max_range;
-  pre.point_stride = config.point_stride;
-  pre.voxel_size = config.scan_voxel_size;
+  pre.min_range = config.preprocess.min_range;
+  pre.max_range = config.preprocess.max_range;
+  pre.point_stride = config.preprocess.point_stride;
+  pre.voxel_size = config.preprocess.scan_voxel_size;
   pre.num_threads = config.num_threads;
   const PreprocessStats pre_stats = downsampler.Run(scan.points, scan.t_begin, pre, pts);
   r->valid_points = pre_stats.valid_points;
@@ -145,13 +145,13 @@ double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* t
   if (lidar) {
     PredictConstantVelocity(t_end, trace);
     // Not from samples held across a stalled IMU stream: the model's turn is better then.
-    if (moving_init && motion.has_pose() && last_imu_stamp >= t_end - config.max_imu_gap_s &&
+    if (moving_init && motion.has_pose() && last_imu_stamp >= t_end - config.imu.max_gap_s &&
         !(late_imu && motion.stamp() < late_imu_from_s)) {
       PredictGyro(t_end, trace);
     }
   } else {
     std::vector<ImuSample> samples(imu.begin(), imu.end());
-    PropagateImu(samples, t_end, acc_scale, config.noise, &state, trace);
+    PropagateImu(samples, t_end, acc_scale, config.imu.noise, &state, trace);
     for (const ImuSample& s : samples) {
       if (s.stamp_s > t_end && s.stamp_s != samples.front().stamp_s) break;
       gyro_at_scan_end = s.angular_velocity;
@@ -261,8 +261,8 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
   // Trusted so, the filter reads the remaining offset as velocity and drifts on with it; with the
   // LiDAR-only prior's uncertainty back on the position it corrects the position instead.
   if (relocalized_since_loss) {
-    P_pos += config.imu_loss_prior_pos_std * config.imu_loss_prior_pos_std *
-             Eigen::Matrix3d::Identity();
+    P_pos +=
+        config.imu.loss_prior_pos_std * config.imu.loss_prior_pos_std * Eigen::Matrix3d::Identity();
   }
   relocalized_since_loss = false;
   const double dt = std::max(fallback_dt, 1e-3);
@@ -277,7 +277,7 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
   // acceleration makes of it over the gap (as for a bridged gap, WidenForGap) is unknown too.
   // Horizontally only: a vertical velocity error is what a tilt makes of gravity, and the
   // update would explain one by the other.
-  const double v_gap = config.gap_acc_std * imu_loss_gap_s;
+  const double v_gap = config.imu.gap_acc_std * imu_loss_gap_s;
   const Eigen::Vector3d up = state.gravity_world.norm() > 1e-6 ? state.gravity_world.normalized()
                                                                : Eigen::Vector3d::UnitZ();
   state.P.block<3, 3>(kVel, kVel) =
@@ -537,8 +537,8 @@ void LioPpf::Impl::ExtendMap(const IekfReport& rep, const Eigen::Isometry3d& T_w
   const auto t0 = Clock::now();
   // A scan that could not be registered is not trusted to extend the map.
   if (!rep.skipped && !Relocating()) InsertScattered(frame, T_world_lidar, r);
-  if (config.map_radius > 0.0 && ++scans_since_prune >= 10) {
-    map.RemoveFarFrom(state.p_world_imu, config.map_radius);
+  if (config.map.radius > 0.0 && ++scans_since_prune >= 10) {
+    map.RemoveFarFrom(state.p_world_imu, config.map.radius);
     scans_since_prune = 0;
   }
   r->timings.map_insert = MsSince(t0);
@@ -586,9 +586,9 @@ void LioPpf::Impl::FillState(ScanResult* r) const {
 // either side held throughout. Allow a constant unmeasured acceleration and turn rate for its
 // length, so the registration of the next scan can move the pose as far as that explains.
 void LioPpf::Impl::WidenForGap(double gap_s) {
-  const double rot = config.gap_gyro_std * gap_s;
-  const double vel = config.gap_acc_std * gap_s;
-  const double pos = 0.5 * config.gap_acc_std * gap_s * gap_s;
+  const double rot = config.imu.gap_gyro_std * gap_s;
+  const double vel = config.imu.gap_acc_std * gap_s;
+  const double pos = 0.5 * config.imu.gap_acc_std * gap_s * gap_s;
   state.P.block<3, 3>(kRot, kRot).diagonal().array() += rot * rot;
   state.P.block<3, 3>(kVel, kVel).diagonal().array() += vel * vel;
   state.P.block<3, 3>(kPos, kPos).diagonal().array() += pos * pos;

@@ -78,10 +78,10 @@ ConfigTable CoreConfigTable(Config* c) {
       [c] { return ShowTransform(c->T_imu_lidar); });
   t.AddHint("extrinsic", "transforms are named T_<to>_<from>");
 
-  t.Add("preprocess.min_range", &c->min_range);
-  t.Add("preprocess.max_range", &c->max_range);
-  t.Add("preprocess.point_stride", &c->point_stride);
-  t.Add("preprocess.scan_voxel_size", &c->scan_voxel_size);
+  t.Add("preprocess.min_range", &c->preprocess.min_range);
+  t.Add("preprocess.max_range", &c->preprocess.max_range);
+  t.Add("preprocess.point_stride", &c->preprocess.point_stride);
+  t.Add("preprocess.scan_voxel_size", &c->preprocess.scan_voxel_size);
 
   t.Add("time.field", &c->time.field_name);
   t.Add("time.unit_scale", &c->time.unit_scale_s);
@@ -112,36 +112,36 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("map.max_voxels", &c->map.max_voxels);
   t.Add("map.max_points_per_voxel", &c->map.max_points_per_voxel);
   t.Add("map.min_point_distance", &c->map.min_point_distance);
-  t.Add("map.radius", &c->map_radius);
+  t.Add("map.radius", &c->map.radius);
 
-  t.AddEnum("imu.mode", &c->imu_mode,
+  t.AddEnum("imu.mode", &c->imu.mode,
             {{"auto", ImuMode::kAuto}, {"lio", ImuMode::kLio}, {"none", ImuMode::kNone}});
-  t.Add("imu.auto_wait", &c->imu_auto_wait_s);
-  t.Add("imu.init_duration", &c->init.duration_s);
-  t.Add("imu.init_min_samples", &c->init.min_samples);
-  t.Add("imu.init_max_acc_std", &c->init.max_acc_std);
-  t.Add("imu.init_max_gyro_std", &c->init.max_gyro_std);
-  t.Add("imu.init_max_gyro_bias", &c->init.max_gyro_bias);
-  t.Add("imu.init_max_gravity_error", &c->init.max_gravity_error);
-  t.Add("imu.moving_start", &c->init.moving_start);
-  t.Add("imu.moving_start_window", &c->init.moving_start_window_s);
-  t.Add("imu.moving_start_max_gravity_error", &c->init.moving_start_max_gravity_error);
-  t.Add("imu.acc_scale", &c->init.acc_scale);
-  t.Add("imu.gravity", &c->init.gravity);
-  t.Add("imu.gyro_noise", &c->noise.gyro);
-  t.Add("imu.acc_noise", &c->noise.acc);
-  t.Add("imu.gyro_bias_noise", &c->noise.gyro_bias);
-  t.Add("imu.acc_bias_noise", &c->noise.acc_bias);
-  t.Add("imu.gravity_dir_noise", &c->noise.gravity_dir);
-  t.Add("imu.gyro_range", &c->noise.gyro_range);
-  t.Add("imu.max_gap", &c->max_imu_gap_s);
-  t.Add("imu.max_gap_warn", &c->imu_max_gap_warn_s);
-  t.Add("imu.max_gap_bridge", &c->max_imu_gap_bridge_s);
-  t.Add("imu.loss_timeout", &c->imu_loss_timeout_s);
-  t.Add("imu.loss_prior_pos_std", &c->imu_loss_prior_pos_std);
-  t.Add("imu.loss_prior_rot_std", &c->imu_loss_prior_rot_std);
-  t.Add("imu.gap_acc_std", &c->gap_acc_std);
-  t.Add("imu.gap_gyro_std", &c->gap_gyro_std);
+  t.Add("imu.auto_wait", &c->imu.auto_wait_s);
+  t.Add("imu.init_duration", &c->imu.init.duration_s);
+  t.Add("imu.init_min_samples", &c->imu.init.min_samples);
+  t.Add("imu.init_max_acc_std", &c->imu.init.max_acc_std);
+  t.Add("imu.init_max_gyro_std", &c->imu.init.max_gyro_std);
+  t.Add("imu.init_max_gyro_bias", &c->imu.init.max_gyro_bias);
+  t.Add("imu.init_max_gravity_error", &c->imu.init.max_gravity_error);
+  t.Add("imu.moving_start", &c->imu.init.moving_start);
+  t.Add("imu.moving_start_window", &c->imu.init.moving_start_window_s);
+  t.Add("imu.moving_start_max_gravity_error", &c->imu.init.moving_start_max_gravity_error);
+  t.Add("imu.acc_scale", &c->imu.init.acc_scale);
+  t.Add("imu.gravity", &c->imu.init.gravity);
+  t.Add("imu.gyro_noise", &c->imu.noise.gyro);
+  t.Add("imu.acc_noise", &c->imu.noise.acc);
+  t.Add("imu.gyro_bias_noise", &c->imu.noise.gyro_bias);
+  t.Add("imu.acc_bias_noise", &c->imu.noise.acc_bias);
+  t.Add("imu.gravity_dir_noise", &c->imu.noise.gravity_dir);
+  t.Add("imu.gyro_range", &c->imu.noise.gyro_range);
+  t.Add("imu.max_gap", &c->imu.max_gap_s);
+  t.Add("imu.max_gap_warn", &c->imu.max_gap_warn_s);
+  t.Add("imu.max_gap_bridge", &c->imu.max_gap_bridge_s);
+  t.Add("imu.loss_timeout", &c->imu.loss_timeout_s);
+  t.Add("imu.loss_prior_pos_std", &c->imu.loss_prior_pos_std);
+  t.Add("imu.loss_prior_rot_std", &c->imu.loss_prior_rot_std);
+  t.Add("imu.gap_acc_std", &c->imu.gap_acc_std);
+  t.Add("imu.gap_gyro_std", &c->imu.gap_gyro_std);
 
   t.Add("lidar_only.good_fit", &c->lidar_only.good_fit);
   t.Add("lidar_only.good_fit_relative", &c->lidar_only.good_fit_relative);
@@ -245,22 +245,24 @@ class Fixer {
 };
 
 void ValidatePreprocessMapAndTime(Config* c, Fixer& fix) {
-  fix(!(c->min_range >= 0.0), "preprocess.min_range", &c->min_range, 0.0);
-  fix(!(c->max_range > c->min_range), "preprocess.max_range", &c->max_range, c->min_range + 100.0);
-  fix(c->point_stride < 1, "preprocess.point_stride", &c->point_stride, 1);
-  fix(!(c->scan_voxel_size >= 0.0), "preprocess.scan_voxel_size", &c->scan_voxel_size, 0.5);
-  fix(c->scan_voxel_size > 0.0 && c->scan_voxel_size < 0.01, "preprocess.scan_voxel_size",
-      &c->scan_voxel_size, 0.01);
+  PreprocessConfig& pre = c->preprocess;
+  fix(!(pre.min_range >= 0.0), "preprocess.min_range", &pre.min_range, 0.0);
+  fix(!(pre.max_range > pre.min_range), "preprocess.max_range", &pre.max_range,
+      pre.min_range + 100.0);
+  fix(pre.point_stride < 1, "preprocess.point_stride", &pre.point_stride, 1);
+  fix(!(pre.scan_voxel_size >= 0.0), "preprocess.scan_voxel_size", &pre.scan_voxel_size, 0.5);
+  fix(pre.scan_voxel_size > 0.0 && pre.scan_voxel_size < 0.01, "preprocess.scan_voxel_size",
+      &pre.scan_voxel_size, 0.01);
   fix(!(c->map.resolution >= 0.05), "map.resolution", &c->map.resolution, 0.05);
   fix(c->map.max_voxels < 1000, "map.max_voxels", &c->map.max_voxels, size_t{1000});
   fix(c->map.max_points_per_voxel < 1, "map.max_points_per_voxel", &c->map.max_points_per_voxel,
       size_t{1});
   fix(!(c->map.min_point_distance >= 0.0), "map.min_point_distance", &c->map.min_point_distance,
       0.0);
-  fix(!(c->map_radius >= 0.0), "map.radius", &c->map_radius, 0.0);
+  fix(!(c->map.radius >= 0.0), "map.radius", &c->map.radius, 0.0);
   fix(!(c->time.scan_period_s > 0.0), "time.scan_period", &c->time.scan_period_s, 0.1);
   fix(!(c->time.unit_scale_s >= 0.0), "time.unit_scale", &c->time.unit_scale_s, 0.0);
-  fix(!(c->imu_auto_wait_s >= 0.0), "imu.auto_wait", &c->imu_auto_wait_s, 2.0);
+  fix(!(c->imu.auto_wait_s >= 0.0), "imu.auto_wait", &c->imu.auto_wait_s, 2.0);
 }
 
 void ValidateConsistency(Config* c, Fixer& fix) {
@@ -295,29 +297,29 @@ void ValidateLidarOnly(Config* c, Fixer& fix) {
 }
 
 void ValidateImu(Config* c, Fixer& fix) {
-  fix(!(c->init.duration_s >= 0.0), "imu.init_duration", &c->init.duration_s, 1.0);
-  fix(c->init.min_samples < 2, "imu.init_min_samples", &c->init.min_samples, 2);
-  fix(!(c->init.moving_start_window_s >= 0.3 && c->init.moving_start_window_s <= 10.0),
-      "imu.moving_start_window", &c->init.moving_start_window_s, 1.5);
-  fix(!(c->init.moving_start_max_gravity_error > 0.0), "imu.moving_start_max_gravity_error",
-      &c->init.moving_start_max_gravity_error, 0.5);
-  fix(!(c->max_imu_gap_s > 0.0), "imu.max_gap", &c->max_imu_gap_s, 0.5);
-  fix(!(c->imu_max_gap_warn_s > 0.0), "imu.max_gap_warn", &c->imu_max_gap_warn_s, 0.1);
-  fix(!(c->max_imu_gap_bridge_s >= 0.0), "imu.max_gap_bridge", &c->max_imu_gap_bridge_s, 0.0);
-  fix(!(c->imu_loss_timeout_s > 0.0), "imu.loss_timeout", &c->imu_loss_timeout_s, 0.25);
-  fix(!(c->imu_loss_prior_pos_std > 0.0), "imu.loss_prior_pos_std", &c->imu_loss_prior_pos_std,
+  fix(!(c->imu.init.duration_s >= 0.0), "imu.init_duration", &c->imu.init.duration_s, 1.0);
+  fix(c->imu.init.min_samples < 2, "imu.init_min_samples", &c->imu.init.min_samples, 2);
+  fix(!(c->imu.init.moving_start_window_s >= 0.3 && c->imu.init.moving_start_window_s <= 10.0),
+      "imu.moving_start_window", &c->imu.init.moving_start_window_s, 1.5);
+  fix(!(c->imu.init.moving_start_max_gravity_error > 0.0), "imu.moving_start_max_gravity_error",
+      &c->imu.init.moving_start_max_gravity_error, 0.5);
+  fix(!(c->imu.max_gap_s > 0.0), "imu.max_gap", &c->imu.max_gap_s, 0.5);
+  fix(!(c->imu.max_gap_warn_s > 0.0), "imu.max_gap_warn", &c->imu.max_gap_warn_s, 0.1);
+  fix(!(c->imu.max_gap_bridge_s >= 0.0), "imu.max_gap_bridge", &c->imu.max_gap_bridge_s, 0.0);
+  fix(!(c->imu.loss_timeout_s > 0.0), "imu.loss_timeout", &c->imu.loss_timeout_s, 0.25);
+  fix(!(c->imu.loss_prior_pos_std > 0.0), "imu.loss_prior_pos_std", &c->imu.loss_prior_pos_std,
       0.3);
-  fix(!(c->imu_loss_prior_rot_std > 0.0), "imu.loss_prior_rot_std", &c->imu_loss_prior_rot_std,
+  fix(!(c->imu.loss_prior_rot_std > 0.0), "imu.loss_prior_rot_std", &c->imu.loss_prior_rot_std,
       0.1);
-  fix(!(c->gap_acc_std >= 0.0), "imu.gap_acc_std", &c->gap_acc_std, 1.0);
-  fix(!(c->gap_gyro_std >= 0.0), "imu.gap_gyro_std", &c->gap_gyro_std, 0.05);
-  fix(!(c->noise.gyro >= 0.0), "imu.gyro_noise", &c->noise.gyro, 0.01);
-  fix(!(c->noise.acc >= 0.0), "imu.acc_noise", &c->noise.acc, 0.02);
-  fix(!(c->noise.gyro_bias >= 0.0), "imu.gyro_bias_noise", &c->noise.gyro_bias, 1e-4);
-  fix(!(c->noise.acc_bias >= 0.0), "imu.acc_bias_noise", &c->noise.acc_bias, 1e-3);
-  fix(!(c->noise.gravity_dir >= 0.0), "imu.gravity_dir_noise", &c->noise.gravity_dir, 0.0);
-  fix(!(c->noise.gyro_range >= 0.0) || !std::isfinite(c->noise.gyro_range), "imu.gyro_range",
-      &c->noise.gyro_range, 0.0);
+  fix(!(c->imu.gap_acc_std >= 0.0), "imu.gap_acc_std", &c->imu.gap_acc_std, 1.0);
+  fix(!(c->imu.gap_gyro_std >= 0.0), "imu.gap_gyro_std", &c->imu.gap_gyro_std, 0.05);
+  fix(!(c->imu.noise.gyro >= 0.0), "imu.gyro_noise", &c->imu.noise.gyro, 0.01);
+  fix(!(c->imu.noise.acc >= 0.0), "imu.acc_noise", &c->imu.noise.acc, 0.02);
+  fix(!(c->imu.noise.gyro_bias >= 0.0), "imu.gyro_bias_noise", &c->imu.noise.gyro_bias, 1e-4);
+  fix(!(c->imu.noise.acc_bias >= 0.0), "imu.acc_bias_noise", &c->imu.noise.acc_bias, 1e-3);
+  fix(!(c->imu.noise.gravity_dir >= 0.0), "imu.gravity_dir_noise", &c->imu.noise.gravity_dir, 0.0);
+  fix(!(c->imu.noise.gyro_range >= 0.0) || !std::isfinite(c->imu.noise.gyro_range),
+      "imu.gyro_range", &c->imu.noise.gyro_range, 0.0);
 }
 
 void ValidateIekfAndKnn(Config* c, Fixer& fix) {

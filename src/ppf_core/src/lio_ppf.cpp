@@ -32,7 +32,7 @@ LioPpf::Impl::Impl(const Config& c) : config(c), map(c.map) {
   }
   decoder = TimeFieldDecoder(config.time, config.log);
   decoder.set_num_threads(config.num_threads);
-  init = ImuInitializer(config.init);
+  init = ImuInitializer(config.imu.init);
   map = VoxelMap(config.map);
   knn = std::make_shared<KnnResidualProvider>(config.knn);
   // PPF: the paper's plane pre-fitting + skeleton tracking splits every kPpf scan.
@@ -89,7 +89,7 @@ void LioPpf::Impl::AddImu(const ImuSample& s) {
   // kNone: ignored even before the first scan has made the decision (DecideImuMode).
   const bool finite = std::isfinite(s.stamp_s) && s.angular_velocity.allFinite() &&
                       s.linear_acceleration.allFinite();
-  if (finite && config.imu_mode != ImuMode::kNone) {
+  if (finite && config.imu.mode != ImuMode::kNone) {
     // The stream's own clock, whether the sample is used or not (JudgeClockOffset).
     ++imu_arrived_since_scan;
     imu_arrived_stamp = s.stamp_s;
@@ -99,13 +99,13 @@ void LioPpf::Impl::AddImu(const ImuSample& s) {
     }
   }
   if (lidar_only && lidar_only_auto && finite) StartLateImu(s);
-  if (lidar_only || config.imu_mode == ImuMode::kNone) {
+  if (lidar_only || config.imu.mode == ImuMode::kNone) {
     ++ignored_imu;
     return;
   }
   if (!lio_decided) {
     lio_decided = true;
-    if (config.imu_mode == ImuMode::kAuto) {
+    if (config.imu.mode == ImuMode::kAuto) {
       Log(LogLevel::kInfo, "IMU data present: LiDAR-inertial mode");
     }
   }
@@ -262,16 +262,16 @@ void LioPpf::Impl::ResolveImuConflict() {
 // imu.max_gap (JudgeImuGap's lines name the longer ones when the filter runs).
 void LioPpf::Impl::CountImuGap(const ImuSample& s) {
   const double gap = s.stamp_s - last_imu_stamp;
-  if (!(gap > config.imu_max_gap_warn_s) || !std::isfinite(gap)) return;
+  if (!(gap > config.imu.max_gap_warn_s) || !std::isfinite(gap)) return;
   ++input_stats.imu_gaps;
   input_stats.imu_gap_longest_s = std::max(input_stats.imu_gap_longest_s, gap);
   imu_gap_longest_since_result_s = std::max(imu_gap_longest_since_result_s, gap);
-  const bool named_later = gap > config.max_imu_gap_s && (initialized || moving_init || imu_lost);
+  const bool named_later = gap > config.imu.max_gap_s && (initialized || moving_init || imu_lost);
   size_t held = 0;
   if (named_later || !imu_gap_log.Allow(s.stamp_s, &held)) return;
   std::ostringstream os;
   os << "IMU gap of " << gap << " s (no sample from t=" << last_imu_stamp << " to " << s.stamp_s
-     << ") > imu.max_gap_warn " << config.imu_max_gap_warn_s << " s";
+     << ") > imu.max_gap_warn " << config.imu.max_gap_warn_s << " s";
   if (held > 0) os << " (" << held << " more gaps since the last line)";
   Log(LogLevel::kWarn, os.str());
 }
@@ -370,7 +370,7 @@ void LioPpf::Impl::JudgeImuGap(const ImuSample& s) {
     os << "IMU time went backwards by " << last_imu_stamp - s.stamp_s << " s";
     last_imu_stamp = -std::numeric_limits<double>::infinity();
     ResetFilter(os.str());
-  } else if (moving_init && s.stamp_s - last_imu_stamp > config.max_imu_gap_s) {
+  } else if (moving_init && s.stamp_s - last_imu_stamp > config.imu.max_gap_s) {
     // The preintegration would span the gap: register the scans again after it.
     std::ostringstream os;
     os << "IMU gap of " << s.stamp_s - last_imu_stamp << " s";
@@ -385,11 +385,11 @@ void LioPpf::Impl::JudgeImuGap(const ImuSample& s) {
     os << "IMU gap of " << imu_loss_gap_s << " s: IMU back, LIO resumes at the next scan it covers"
        << " (re-anchored at the LiDAR-only pose, map, gravity and biases kept)";
     Log(LogLevel::kInfo, os.str());
-  } else if (initialized && s.stamp_s - last_imu_stamp > config.max_imu_gap_s) {
+  } else if (initialized && s.stamp_s - last_imu_stamp > config.imu.max_gap_s) {
     const double gap = s.stamp_s - last_imu_stamp;
     std::ostringstream os;
-    os << "IMU gap of " << gap << " s > max_imu_gap " << config.max_imu_gap_s << " s";
-    if (gap <= config.max_imu_gap_bridge_s) {
+    os << "IMU gap of " << gap << " s > imu.max_gap " << config.imu.max_gap_s << " s";
+    if (gap <= config.imu.max_gap_bridge_s) {
       // Widened when the next scan has been propagated across it (ProcessOne): a scan still
       // queued from before the gap must not see the extra uncertainty.
       bridged_gaps.push_back({last_imu_stamp, gap});
@@ -398,7 +398,7 @@ void LioPpf::Impl::JudgeImuGap(const ImuSample& s) {
       // Both streams were silent (no scan needed the fallback): integrating across the gap would
       // run away, and a reset would need a static start a moving robot never gives. The scans
       // before these samples are registered LiDAR-only, then LIO re-anchors.
-      os << " and > max_imu_gap_bridge " << config.max_imu_gap_bridge_s << " s";
+      os << " and > imu.max_gap_bridge " << config.imu.max_gap_bridge_s << " s";
       EnterImuLoss(os.str());
       imu_back = true;
       imu_back_stamp_s = s.stamp_s;
@@ -410,7 +410,7 @@ void LioPpf::Impl::JudgeImuGap(const ImuSample& s) {
 void LioPpf::Impl::FeedInitializer(const ImuSample& s) {
   // The scans are registered LiDAR-only while the IMU is judged, so that a moving start has
   // its window of poses by the time the IMU is refused; a static start discards them.
-  if (config.init.moving_start) moving_init = true;
+  if (config.imu.init.moving_start) moving_init = true;
   const ImuInitializer::State st = init.Add(s);
   if (st == ImuInitializer::State::kRestarted) {
     Log(LogLevel::kWarn, init.reason());
@@ -492,8 +492,8 @@ std::vector<ScanResult> LioPpf::Impl::Process(bool flush) {
   while (!scans.empty()) {
     QueuedScan& q = scans.front();
     // Wait for the IMU to cover the scan, unless the IMU stream has stalled: scans newer than
-    // the last IMU sample by more than max_imu_gap_s are not held back forever.
-    const bool imu_stalled = scans.back().stamp_s - last_imu_stamp > config.max_imu_gap_s;
+    // the last IMU sample by more than imu.max_gap_s are not held back forever.
+    const bool imu_stalled = scans.back().stamp_s - last_imu_stamp > config.imu.max_gap_s;
     fallback_scan = !q.rejected && NeedsFallback(q.scan, imu_stalled || flush);
     if (!q.rejected && !flush && !imu_stalled && !fallback_scan &&
         ImuCoveredUntil() < q.scan.t_end) {
@@ -521,7 +521,7 @@ std::vector<ScanResult> LioPpf::Impl::Process(bool flush) {
 }
 
 // IMU loss: true if this scan is registered LiDAR-only. LIO running, a scan ending more than
-// imu_loss_timeout_s after the last IMU sample declares the loss (only when the stream has
+// imu.loss_timeout_s after the last IMU sample declares the loss (only when the stream has
 // stalled or at flush: otherwise the scan waits for samples still on their way); the loss lasts
 // until IMU samples are back from the start of the scan on.
 bool LioPpf::Impl::NeedsFallback(const DecodedScan& scan, bool may_declare) {
@@ -529,13 +529,13 @@ bool LioPpf::Impl::NeedsFallback(const DecodedScan& scan, bool may_declare) {
   if (imu_lost) {
     // A re-localized pose gives no velocity to resume from when the next scan comes this late
     // (a core that fell behind dropped the scans between): re-localize again.
-    if (relocalized_since_loss && scan.t_end - state.stamp_s > config.max_imu_gap_s) return true;
+    if (relocalized_since_loss && scan.t_end - state.stamp_s > config.imu.max_gap_s) return true;
     return !(imu_back && imu_back_stamp_s <= state.stamp_s + kResumeSlackS);
   }
-  if (!may_declare || scan.t_end - last_imu_stamp <= config.imu_loss_timeout_s) return false;
+  if (!may_declare || scan.t_end - last_imu_stamp <= config.imu.loss_timeout_s) return false;
   std::ostringstream os;
   os << "no IMU sample for " << scan.t_end - last_imu_stamp << " s > imu.loss_timeout "
-     << config.imu_loss_timeout_s << " s";
+     << config.imu.loss_timeout_s << " s";
   EnterImuLoss(os.str());
   return true;
 }
@@ -554,15 +554,15 @@ void LioPpf::Impl::EnterImuLoss(const std::string& why) {
 // (the scans wait: none is lost to the decision).
 bool LioPpf::Impl::DecideImuMode(bool flush) {
   if (lidar_only || lio_decided) return true;
-  if (config.imu_mode == ImuMode::kLio) {
+  if (config.imu.mode == ImuMode::kLio) {
     lio_decided = true;
     return true;
   }
-  const bool none = config.imu_mode == ImuMode::kNone;
+  const bool none = config.imu.mode == ImuMode::kNone;
   if (!none) {
     if (scans.empty()) return true;
     const double span = scans.back().stamp_s - scans.front().stamp_s;
-    if (!flush && span < config.imu_auto_wait_s) return false;
+    if (!flush && span < config.imu.auto_wait_s) return false;
   }
   lidar_only = true;
   lidar_only_auto = !none;
@@ -595,7 +595,7 @@ void LioPpf::Impl::StartLateImu(const ImuSample& s) {
   imu_conflict = ImuConflict();
   std::ostringstream os;
   os << "IMU data at t=" << s.stamp_s << " after a LiDAR-only start: LiDAR-inertial once "
-     << config.init.moving_start_window_s
+     << config.imu.init.moving_start_window_s
      << " s of scans estimate gravity in the LiDAR-only world (kept: no reset, no jump)";
   Log(LogLevel::kInfo, os.str());
 }

@@ -156,7 +156,7 @@ struct LioPpf::Impl {
   // The scan is registered LiDAR-only after a gap longer than the IMU bridges: a re-localization
   // whose pose is not trusted to extend the map.
   void ReportRelocalization(ScanResult* r);
-  bool Relocating() const { return fallback_scan && fallback_dt > config.max_imu_gap_s; }
+  bool Relocating() const { return fallback_scan && fallback_dt > config.imu.max_gap_s; }
   void AddAlongTrackGuesses(const Eigen::Isometry3d& T_world_lidar, const Eigen::Vector3d& v_world,
                             double dt, std::vector<MotionHypothesis>* h) const;
   void RedeskewLidarOnly(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end);

@@ -81,7 +81,7 @@ void LioPpf::Impl::MovingInitStep(ScanResult* r) {
   pose.R = state.R_world_imu;
   pose.p = state.p_world_imu;
   moving_poses.push_back(pose);
-  const double window = config.init.moving_start_window_s;
+  const double window = config.imu.init.moving_start_window_s;
   while (moving_poses.size() > 2 && pose.t - moving_poses[1].t + 1e-6 >= window) {
     moving_poses.erase(moving_poses.begin());
   }
@@ -92,10 +92,10 @@ void LioPpf::Impl::MovingInitStep(ScanResult* r) {
     return;
   }
   MovingStartOptions opt;
-  opt.gravity = config.init.gravity > 0.0 ? config.init.gravity : 9.80665;
-  opt.acc_scale = config.init.acc_scale;
-  opt.max_gravity_error = config.init.moving_start_max_gravity_error;
-  opt.max_gyro_bias = config.init.max_gyro_bias;
+  opt.gravity = config.imu.init.gravity > 0.0 ? config.imu.init.gravity : 9.80665;
+  opt.acc_scale = config.imu.init.acc_scale;
+  opt.max_gravity_error = config.imu.init.moving_start_max_gravity_error;
+  opt.max_gyro_bias = config.imu.init.max_gyro_bias;
   const std::vector<ImuSample> samples(imu.begin(), imu.end());
   const MovingStartEstimate e = EstimateMovingStart(samples, moving_poses, opt);
   if (!e.ok) {
@@ -132,7 +132,7 @@ void LioPpf::Impl::SetMovingInitResult(ScanResult* r) const {
     const double span =
         moving_poses.empty() ? 0.0 : moving_poses.back().t - moving_poses.front().t;
     os << "IMU after a LiDAR-only start: estimating gravity, " << span << " of "
-       << config.init.moving_start_window_s << " s";
+       << config.imu.init.moving_start_window_s << " s";
     Append(&r->reason, os.str());
     return;
   }
@@ -147,7 +147,7 @@ void LioPpf::Impl::SetMovingInitResult(ScanResult* r) const {
   os.precision(3);
   const double span = moving_poses.empty() ? 0.0 : moving_poses.back().t - moving_poses.front().t;
   os << "moving-start initialization: LiDAR-only registration, " << span << " of "
-     << config.init.moving_start_window_s << " s (" << init.reason() << ")";
+     << config.imu.init.moving_start_window_s << " s (" << init.reason() << ")";
   r->reason = os.str();
 }
 

@@ -71,8 +71,10 @@ Eigen::Isometry3d LioPpf::Impl::ExtrapolateModel(double t_end) const {
 }
 
 void LioPpf::Impl::SetLidarOnlyPrior() {
-  const double rot = fallback_scan ? config.imu_loss_prior_rot_std : config.lidar_only.prior_rot_std;
-  const double pos = fallback_scan ? config.imu_loss_prior_pos_std : config.lidar_only.prior_pos_std;
+  const double rot =
+      fallback_scan ? config.imu.loss_prior_rot_std : config.lidar_only.prior_rot_std;
+  const double pos =
+      fallback_scan ? config.imu.loss_prior_pos_std : config.lidar_only.prior_pos_std;
   state.P = StateCov::Identity() * 1e-6;
   state.P.block<3, 3>(kRot, kRot).diagonal().setConstant(rot * rot);
   state.P.block<3, 3>(kPos, kPos).diagonal().setConstant(pos * pos);
@@ -176,7 +178,7 @@ void LioPpf::Impl::AddAlongTrackGuesses(const Eigen::Isometry3d& T_world_lidar,
                                         std::vector<MotionHypothesis>* h) const {
   constexpr int kMaxPerSide = 20;
   const double spacing = std::max(config.knn.max_neighbor_distance, 0.25);
-  const double reach = 0.5 * 3.0 * config.gap_acc_std * dt * dt;
+  const double reach = 0.5 * 3.0 * config.imu.gap_acc_std * dt * dt;
   if (v_world.norm() < 0.5 || reach < spacing) return;
   const Eigen::Vector3d u = v_world.normalized();
   const int n = std::min(kMaxPerSide, static_cast<int>(std::ceil(reach / spacing)));

@@ -125,10 +125,10 @@ void LioPpf::Impl::Preprocess(const QueuedScan& q, std::vector<TimedPoint>* pts,
   const DecodedScan& scan = q.scan;
   auto t0 = Clock::now();
   PreprocessOptions pre;
-  pre.min_range = config.min_range;
-  pre.max_range = config.max_range;
-  pre.point_stride = config.point_stride;
-  pre.voxel_size = config.scan_voxel_size;
+  pre.min_range = config.preprocess.min_range;
+  pre.max_range = config.preprocess.max_range;
+  pre.point_stride = config.preprocess.point_stride;
+  pre.voxel_size = config.preprocess.scan_voxel_size;
   pre.num_threads = config.num_threads;
   const PreprocessStats pre_stats = downsampler.Run(scan.points, scan.t_begin, pre, pts);
   r->valid_points = pre_stats.valid_points;
@@ -146,14 +146,14 @@ double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* t
   if (lidar) {
     PredictConstantVelocity(t_end, trace);
     // Not from samples held across a stalled IMU stream: the model's turn is better then.
-    if (moving_init && motion.has_pose() && last_imu_stamp >= t_end - config.max_imu_gap_s &&
+    if (moving_init && motion.has_pose() && last_imu_stamp >= t_end - config.imu.max_gap_s &&
         !(late_imu && motion.stamp() < late_imu_from_s)) {
       PredictGyro(t_end, trace);
     }
   } else {
     std::vector<ImuSample> samples(imu.begin(), imu.end());
     const NavState start = state;
-    PropagateImu(samples, t_end, acc_scale, config.noise, &state, trace, &saturation);
+    PropagateImu(samples, t_end, acc_scale, config.imu.noise, &state, trace, &saturation);
     r->gyro_saturated_s = saturation.seconds;
     if (saturation.seconds > 0.0) {
       saturation_start = start;
@@ -266,11 +266,11 @@ void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan,
     if (x.isZero()) break;
     excess += x;
     std::vector<ImuSample> samples = saturation_samples;
-    AddUnmeasuredRate(excess, config.noise.gyro_range, &samples);
+    AddUnmeasuredRate(excess, config.imu.noise.gyro_range, &samples);
     state = saturation_start;
     PoseTrace trace;
     GyroSaturation again;
-    PropagateImu(samples, t_end, acc_scale, config.noise, &state, &trace, &again);
+    PropagateImu(samples, t_end, acc_scale, config.imu.noise, &state, &trace, &again);
     Deskew(scan, pts, trace, t_end);
   }
   std::ostringstream os;
@@ -357,8 +357,8 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
   // Trusted so, the filter reads the remaining offset as velocity and drifts on with it; with the
   // LiDAR-only prior's uncertainty back on the position it corrects the position instead.
   if (relocalized_since_loss) {
-    P_pos += config.imu_loss_prior_pos_std * config.imu_loss_prior_pos_std *
-             Eigen::Matrix3d::Identity();
+    P_pos +=
+        config.imu.loss_prior_pos_std * config.imu.loss_prior_pos_std * Eigen::Matrix3d::Identity();
   }
   relocalized_since_loss = false;
   const double dt = std::max(fallback_dt, 1e-3);
@@ -373,7 +373,7 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
   // acceleration makes of it over the gap (as for a bridged gap, WidenForGap) is unknown too.
   // Horizontally only: a vertical velocity error is what a tilt makes of gravity, and the
   // update would explain one by the other.
-  const double v_gap = config.gap_acc_std * imu_loss_gap_s;
+  const double v_gap = config.imu.gap_acc_std * imu_loss_gap_s;
   const Eigen::Vector3d up = state.gravity_world.norm() > 1e-6 ? state.gravity_world.normalized()
                                                                : Eigen::Vector3d::UnitZ();
   state.P.block<3, 3>(kVel, kVel) =
@@ -633,8 +633,8 @@ void LioPpf::Impl::ExtendMap(const IekfReport& rep, const Eigen::Isometry3d& T_w
   const auto t0 = Clock::now();
   // A scan that could not be registered is not trusted to extend the map.
   if (!rep.skipped && !Relocating()) InsertScattered(frame, T_world_lidar, r);
-  if (config.map_radius > 0.0 && ++scans_since_prune >= 10) {
-    map.RemoveFarFrom(state.p_world_imu, config.map_radius);
+  if (config.map.radius > 0.0 && ++scans_since_prune >= 10) {
+    map.RemoveFarFrom(state.p_world_imu, config.map.radius);
     scans_since_prune = 0;
   }
   r->timings.map_insert = MsSince(t0);
@@ -687,9 +687,9 @@ void LioPpf::Impl::WidenForGap(double from_s, double to_s) {
   auto grown = [&](double std_per_s, double power) {
     return std_per_s * std_per_s * (std::pow(to_s, 2.0 * power) - std::pow(from_s, 2.0 * power));
   };
-  const double rot = grown(config.gap_gyro_std, 1.0);
-  const double vel = grown(config.gap_acc_std, 1.0);
-  const double pos = grown(0.5 * config.gap_acc_std, 2.0);
+  const double rot = grown(config.imu.gap_gyro_std, 1.0);
+  const double vel = grown(config.imu.gap_acc_std, 1.0);
+  const double pos = grown(0.5 * config.imu.gap_acc_std, 2.0);
   state.P.block<3, 3>(kRot, kRot).diagonal().array() += rot;
   state.P.block<3, 3>(kVel, kVel).diagonal().array() += vel;
   state.P.block<3, 3>(kPos, kPos).diagonal().array() += pos;

@@ -22,7 +22,7 @@ TEST(ConfigYaml, EmptyDocumentKeepsAllDefaults) {
   EXPECT_TRUE(r.warnings.empty());
   const Config d;
   EXPECT_EQ(c.mode, d.mode);
-  EXPECT_EQ(c.scan_voxel_size, d.scan_voxel_size);
+  EXPECT_EQ(c.preprocess.scan_voxel_size, d.preprocess.scan_voxel_size);
   EXPECT_EQ(c.iekf.max_iterations, 4);
   EXPECT_EQ(c.knn.k, 5);
   EXPECT_EQ(c.knn.plane_threshold, 0.1);
@@ -53,8 +53,9 @@ ppf:
   ASSERT_TRUE(r.ok) << r.error;
   EXPECT_TRUE(r.warnings.empty()) << r.warnings.front();
   EXPECT_EQ(c.mode, Mode::kPpf);
-  EXPECT_EQ(c.scan_voxel_size, 0.3);
-  EXPECT_EQ(c.min_range, Config().min_range);  // untouched key of a present section
+  EXPECT_EQ(c.preprocess.scan_voxel_size, 0.3);
+  EXPECT_EQ(c.preprocess.min_range,
+            Config().preprocess.min_range);  // untouched key of a present section
   EXPECT_EQ(c.time.field_name, "t");
   EXPECT_EQ(c.time.stamp_position, StampPosition::kEnd);
   EXPECT_EQ(c.time.no_time_policy, NoTimePolicy::kNoDeskew);
@@ -77,7 +78,7 @@ extrinsic:
   ASSERT_TRUE(r.ok) << r.error;
   ASSERT_EQ(r.warnings.size(), 3u);
   EXPECT_NE(r.warnings[0].find("preprocess.scan_voxel_sise"), std::string::npos);
-  EXPECT_EQ(c.scan_voxel_size, 0.5);
+  EXPECT_EQ(c.preprocess.scan_voxel_size, 0.5);
 }
 
 TEST(ConfigYaml, WrongTypesFailWithTheKeyName) {
@@ -99,11 +100,11 @@ TEST(ConfigYaml, WrongTypesFailWithTheKeyName) {
   };
   for (const auto& tc : cases) {
     Config c;
-    c.max_range = 77.0;
+    c.preprocess.max_range = 77.0;
     const ConfigLoadReport r = LoadConfigYamlString(tc.yaml, &c);
     EXPECT_FALSE(r.ok) << tc.yaml;
     EXPECT_NE(r.error.find(tc.key), std::string::npos) << r.error;
-    EXPECT_EQ(c.max_range, 77.0);  // a failed load changes nothing
+    EXPECT_EQ(c.preprocess.max_range, 77.0);  // a failed load changes nothing
   }
 }
 
@@ -126,7 +127,7 @@ knn: {k: 1}
 )", &c);
   ASSERT_TRUE(r.ok) << r.error;
   EXPECT_EQ(r.warnings.size(), 4u);
-  EXPECT_GE(c.scan_voxel_size, 0.01);
+  EXPECT_GE(c.preprocess.scan_voxel_size, 0.01);
   EXPECT_GE(c.map.resolution, 0.05);
   EXPECT_GE(c.iekf.max_iterations, 1);
   EXPECT_GE(c.knn.k, 3);
@@ -159,7 +160,7 @@ TEST(ConfigYaml, NullValueKeepsDefault) {
   Config c;
   const ConfigLoadReport r = LoadConfigYamlString("preprocess:\n  max_range:\n", &c);
   ASSERT_TRUE(r.ok) << r.error;
-  EXPECT_EQ(c.max_range, Config().max_range);
+  EXPECT_EQ(c.preprocess.max_range, Config().preprocess.max_range);
 }
 
 TEST(ConfigYaml, PresetsLoadWithoutWarnings) {
@@ -174,7 +175,7 @@ TEST(ConfigYaml, PresetsLoadWithoutWarnings) {
   Config k;
   ASSERT_TRUE(LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/kitti_raw.yaml", &k).ok);
   EXPECT_NEAR(k.T_imu_lidar.translation().x(), 0.81, 0.01);
-  EXPECT_EQ(k.init.acc_scale, 1.0);
+  EXPECT_EQ(k.imu.init.acc_scale, 1.0);
 }
 
 // --- the reference file: config/reference.yaml lists every key with the struct's default ---------

@@ -245,7 +245,7 @@ TEST(EndToEnd, AutoModeFallsBackToLidarOnlyWithoutImu) {
   o.no_imu = true;
   o.duration = 4.0;
   Config config;
-  ASSERT_EQ(config.imu_mode, ImuMode::kAuto);
+  ASSERT_EQ(config.imu.mode, ImuMode::kAuto);
   const RunOutput run = Simulate(o, config);
   ASSERT_GE(run.results.size(), 39u);  // 4 s of 0.1 s scans
   for (const ScanResult& r : run.results) {
@@ -345,7 +345,7 @@ TEST(EndToEnd, TwoSecondGapWhileMovingIsBridged) {
   CheckAccuracy(run, "2 s gap while moving, bridged", "gap2s");
 }
 
-// Beyond max_imu_gap_bridge the filter is not reset (a moving robot would wait for the moving
+// Beyond imu.max_gap_bridge the filter is not reset (a moving robot would wait for the moving
 // start): the first scan after such a gap is registered LiDAR-only (the filter's motion
 // continued by the constant-velocity model, several guesses) and LIO re-anchors there: no reset,
 // a pose for every scan after the gap, the accuracy bound kept.
@@ -355,7 +355,7 @@ TEST(EndToEnd, GapLongerThanTheBridgeReanchorsWithoutReset) {
   o.gap_begin = 6.0;
   o.gap_length = 2.0;
   Config config;
-  config.max_imu_gap_bridge_s = 1.5;
+  config.imu.max_gap_bridge_s = 1.5;
   const RunOutput run = Simulate(o, config);
   size_t lost = 0, resumed = 0, after_gap = 0;
   for (const ScanResult& r : run.results) {
@@ -373,7 +373,7 @@ TEST(EndToEnd, GapLongerThanTheBridgeReanchorsWithoutReset) {
   EXPECT_LE(lost, 2u);
   EXPECT_EQ(resumed, 1u);
   EXPECT_GE(after_gap, 58u);  // 6 s of scans at 10 Hz after the gap
-  CheckAccuracy(run, "2 s gap > max_imu_gap_bridge, re-anchored", "gap2s_reanchored");
+  CheckAccuracy(run, "2 s gap > imu.max_gap_bridge, re-anchored", "gap2s_reanchored");
 }
 
 // The IMU stops for 3 s while the scans go on: LiDAR-only over the dropout, LIO again after it,

@@ -419,7 +419,7 @@ TEST(LioPpf, StalledImuDoesNotHoldScansForever) {
   const test::CloudBuffer s2 = StillScan(1.3);
   lio.AddScan(s2.view);
   EXPECT_TRUE(lio.Process().empty());  // waits for IMU up to its end
-  const test::CloudBuffer s3 = StillScan(2.0);  // IMU silent for 0.7 s > max_imu_gap 0.5 s
+  const test::CloudBuffer s3 = StillScan(2.0);  // IMU silent for 0.7 s > imu.max_gap 0.5 s
   lio.AddScan(s3.view);
   const std::vector<ScanResult> rs = lio.Process();
   ASSERT_EQ(rs.size(), 2u);

@@ -30,7 +30,7 @@ constexpr double kJumpS = 0.5;
 
 // An IMU stamp more than kJumpS off the stream (back or ahead) is only believed once the next
 // kConfirmSamples samples continue from it: a bag loop or a clock reset restarts the core, a
-// real gap reaches the core (which resets on gaps > max_imu_gap), and a single bad stamp is
+// real gap reaches the core (which resets on gaps > imu.max_gap), and a single bad stamp is
 // dropped instead of throwing away the filter and its map.
 constexpr size_t kConfirmSamples = 5;
 

@@ -13,8 +13,8 @@ namespace {
 
 ImuRateOdometry::Options OptionsFromCore(const Config& core) {
   ImuRateOdometry::Options o;
-  o.noise = core.noise;
-  o.acc_scale = core.init.acc_scale;
+  o.noise = core.imu.noise;
+  o.acc_scale = core.imu.init.acc_scale;
   return o;
 }
 

@@ -4,17 +4,21 @@
 //
 //   ppf_compare                    # full: 60 s urban HDL-64 / urban HDL-32 / indoor VLP-16 / park HDL-32
 //   ppf_compare --short            # CI: shorter sequences, same table
+//   ppf_compare --tum-dir DIR      # also every run's trajectory, DIR/<scene>_<lidar>_<mode>.tum
 #include <cstdlib>
 #include <exception>
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ppf_tools/scan_stats.hpp"
 #include "ppf_tools/study.hpp"
 #include "ppf_trajectory/evaluation.hpp"
+#include "ppf_trajectory/trajectory_io.hpp"
 
 #ifndef PPF_DEFAULT_CONFIG_DIR
 #define PPF_DEFAULT_CONFIG_DIR "config"
@@ -64,6 +68,22 @@ std::vector<Row> RunBothModes(const ppf::tools::StudyOptions& opts,
     rows.push_back(std::move(row));
   }
   return rows;
+}
+
+// Every run's T_world_imu trajectory as TUM, DIR/<scene>_<lidar>_<mode>.tum: two builds' runs
+// compared file by file show a change that should not move a pose did not.
+void WriteTrajectories(const std::string& dir, const std::vector<Row>& rows) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) Fail("--tum-dir " + dir + ": " + ec.message());
+  for (const auto& r : rows) {
+    const std::string base = dir + "/" + r.seq.scene + "_" + r.seq.lidar + "_";
+    for (const auto& [mode, run] : {std::pair<const char*, const ModeResult*>{"knn", &r.knn},
+                                    std::pair<const char*, const ModeResult*>{"ppf", &r.ppf}}) {
+      const std::string path = base + mode + ".tum";
+      if (!ppf::WriteTum(path, run->trajectory)) Fail("cannot write " + path);
+    }
+  }
 }
 
 void PrintHeader(double duration, double tilt_after) {
@@ -143,8 +163,19 @@ int main(int argc, char** argv) {
   opts.sequences = kDefaultSequences;
   opts.config_dir = PPF_DEFAULT_CONFIG_DIR;
   bool help = false;
+  std::string tum_dir;
   std::string error;
-  if (!ppf::tools::ParseStudyCommandLine(argc, argv, &opts, &help, &error)) Fail(error);
+  const ppf::tools::OptionParser own = [&tum_dir](int argc, char** argv, int* i,
+                                                  std::string* error) {
+    if (std::string(argv[*i]) != "--tum-dir") return 0;
+    if (*i + 1 >= argc) {
+      *error = "--tum-dir needs a directory";
+      return -1;
+    }
+    tum_dir = argv[++*i];
+    return 1;
+  };
+  if (!ppf::tools::ParseStudyCommandLine(argc, argv, &opts, &help, &error, own)) Fail(error);
   if (help) {
     std::cout << "usage: ppf_compare [options]\n\n"
                  "Runs --mode knn and --mode ppf on the same simulated sequences (generated with\n"
@@ -154,12 +185,15 @@ int main(int argc, char** argv) {
                  "--tilt-after on) and the final height error (first pose matched by translation\n"
                  "+ yaw).\n\n"
               << ppf::tools::StudyOptionsHelp(kDefaultSequences)
-              << "  -h, --help            this text\n";
+              << "  --tum-dir DIR         also write every run's trajectory (T_world_imu) as TUM,\n"
+                 "                        DIR/<scene>_<lidar>_<knn|ppf>.tum\n"
+                 "  -h, --help            this text\n";
     return 0;
   }
   std::vector<ppf::tools::SequenceSpec> sequences;
   if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
   const std::vector<Row> rows = RunBothModes(opts, sequences);
+  if (!tum_dir.empty()) WriteTrajectories(tum_dir, rows);
 
   PrintHeader(opts.EffectiveDuration(), opts.EffectiveTiltAfter());
   bool all_ok = true;

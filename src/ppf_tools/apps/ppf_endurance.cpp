@@ -139,7 +139,7 @@ ppf::Config LoadConfig(Cli* cli) {
   const auto report = ppf::LoadConfigYaml(cli->config_file, &config);
   if (!report.ok) Fail(cli->config_file + ": " + report.error);
   config.mode = cli->mode == "ppf" ? ppf::Mode::kPpf : ppf::Mode::kKnn;
-  if (cli->map_radius >= 0.0) config.map_radius = config.ppf.patch_radius = cli->map_radius;
+  if (cli->map_radius >= 0.0) config.map.radius = config.ppf.patch_radius = cli->map_radius;
   if (cli->threads >= 0) config.num_threads = cli->threads;
   return config;
 }
@@ -147,7 +147,7 @@ ppf::Config LoadConfig(Cli* cli) {
 void PrintHeader(const Cli& cli, const ppf::Config& config) {
   const ppf::tools::EnduranceOptions& opts = cli.opts;
   std::cout << "ppf_endurance: " << opts.scene << " " << opts.lidar << " " << cli.mode << ", "
-            << opts.duration << " s simulated, map radius " << config.map_radius << " m, LRU "
+            << opts.duration << " s simulated, map radius " << config.map.radius << " m, LRU "
             << config.map.max_voxels << " voxels x " << config.map.max_points_per_voxel
             << " points, roam radius " << opts.roam_radius << " m, seed " << opts.seed << "\n\n";
   std::cout << std::right << std::setw(8) << "sim s" << std::setw(9) << "dist km" << std::setw(11)

@@ -64,16 +64,16 @@ Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) or a ROS 1 .bag wi
   --dump-dir DIR        where --dump-scan writes (created; default: .)
   --map-out FILE        the map: every scan with a pose (status ok or degenerate, not
                         re-localized after a long gap) adds its registered points
-                        (range-filtered, downsampled by scan_voxel_size, de-skewed) in the
-                        world frame to a voxel grid of --map-voxel; one point per voxel, the
-                        mean of its points. FILE.pcd: binary PCD (PCL, CloudCompare);
-                        FILE.ply: binary little-endian PLY (--ply-ascii for ASCII). Fields
-                        x y z intensity (float32); the core keeps no intensity, so
-                        "intensity" is the number of points in the voxel.
-                        Memory grows with the occupied voxels, not with the scans
+                        (range-filtered, downsampled by preprocess.scan_voxel_size, de-skewed)
+                        in the world frame to a voxel grid of --map-voxel; one point per voxel,
+                        the mean of its points. FILE.pcd: binary PCD (PCL, CloudCompare);
+                        FILE.ply: binary little-endian PLY (--ply-ascii for ASCII). Fields x y z
+                        intensity (float32); the core keeps no intensity, so "intensity" is the
+                        number of points in the voxel. Memory grows with the occupied voxels,
+                        not with the scans
   --map-voxel M         voxel size of --map-out in metres (default: 0.1)
   --local-map-out FILE  the core's local kNN map at the end (what the last scan was
-                        registered against, bounded by map.max_voxels and map_radius), as
+                        registered against, bounded by map.max_voxels and map.radius), as
                         stored, world frame, intensity 1; .pcd or .ply as --map-out. In ppf
                         mode the skeleton points are not in it (the core keeps them as
                         plane patches)

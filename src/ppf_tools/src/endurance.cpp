@@ -243,7 +243,7 @@ EnduranceReport RunEndurance(const EnduranceOptions& options, const Config& conf
   Config config = config_in;
   config.T_imu_lidar = drive.scan_options.T_imu_lidar;
   LioPpf lio(config);
-  rep.map_radius = config.map_radius;
+  rep.map_radius = config.map.radius;
   rep.map_capacity_points = lio.map_stats().capacity_points;
   rep.rss_start_mb = CurrentRssMb();
   Tally tally(options, drive, lio, &rep, on_row, t_start);

@@ -43,7 +43,7 @@ OfflineRun RunOffline(const std::string& bag_path, const Config& config,
   std::unique_ptr<LioPpf> lio;
   auto make = [&](bool has_imu) {
     Config c = config;
-    if (!has_imu && c.imu_mode == ImuMode::kAuto) c.imu_mode = ImuMode::kNone;
+    if (!has_imu && c.imu.mode == ImuMode::kAuto) c.imu.mode = ImuMode::kNone;
     lio = std::make_unique<LioPpf>(c);
   };
   uint64_t total_scans = 0;

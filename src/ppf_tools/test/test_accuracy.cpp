@@ -47,7 +47,7 @@ TEST_P(Accuracy, ApeWithinBound) {
   ppf::Config config;
   ASSERT_TRUE(ppf::tools::test::LoadPresetAndCalibration(c.lidar, bag, &config));
   config.mode = c.mode;
-  if (c.lidar_only) config.imu_mode = ppf::ImuMode::kNone;
+  if (c.lidar_only) config.imu.mode = ppf::ImuMode::kNone;
   config.lidar_only.redeskew_iterations = c.redeskew_iterations;
 
   const auto run = ppf::tools::RunOffline(bag, config);

@@ -37,7 +37,7 @@ TEST_P(Endurance, MapAndMemoryStayBounded) {
   const auto report = ppf::LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/vlp16.yaml", &config);
   ASSERT_TRUE(report.ok) << report.error;
   config.mode = GetParam().mode;
-  config.map_radius = kMapRadius;
+  config.map.radius = kMapRadius;
   config.ppf.patch_radius = kMapRadius;  // PPF's plane patch map has its own radius bound
 
   ppf::tools::EnduranceOptions opts;

@@ -50,7 +50,7 @@ ModeRun RunMode(const std::string& bag, const ppf::Trajectory& ref, ppf::Mode mo
   EXPECT_TRUE(report.ok) << report.error;
   EXPECT_TRUE(report.warnings.empty());
   // The preset says none; auto must come to the same without it (the bag has no IMU topic).
-  config.imu_mode = ppf::ImuMode::kAuto;
+  config.imu.mode = ppf::ImuMode::kAuto;
   config.mode = mode;
   ModeRun m;
   ppf::tools::OfflineOptions options;

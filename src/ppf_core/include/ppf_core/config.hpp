@@ -53,6 +53,9 @@ struct VoxelMapOptions {
   // A point closer than this to a point already in its voxel is not stored: re-observations of a
   // surface would otherwise fill voxels with near-duplicates. 0 stores every point (tests).
   double min_point_distance = 0.1;
+  // Voxels farther than this from the sensor are dropped (the core prunes every 10 scans,
+  // RemoveFarFrom); 0 = off. The map itself never reads it.
+  double radius = 150.0;
 };
 
 // --- options of hypothesis_search.hpp (LiDAR-only registration) ---------------------------------
@@ -222,47 +225,37 @@ struct KnnOptions {
   int num_threads = 0;                // 0 = OpenMP default
 };
 
-// --- the core ------------------------------------------------------------------------------------
-enum class Mode { kKnn, kPpf };
+// --- the YAML section preprocess: (the stage's own options, preprocess.hpp, are built from it) -
+struct PreprocessConfig {
+  double min_range = 0.5;        // metres; closer points (the vehicle itself) are dropped
+  double max_range = 150.0;      // metres
+  int point_stride = 1;          // keep every n-th point (1 = all)
+  double scan_voxel_size = 0.5;  // metres, voxel grid applied to the de-skewed scan
+};
 
 // Where the prediction comes from (docs/behaviour.md, "LiDAR-only"). kLio: the IMU (static
 // initialization first). kNone: no IMU; a constant-velocity model and several registration
 // guesses (hypothesis_search.hpp); IMU samples are ignored. kAuto: kLio as soon as an IMU sample
-// arrives; kNone if scans spanning imu_auto_wait_s (or the whole input, at flush) came without one.
+// arrives; kNone if scans spanning imu.auto_wait_s (or the whole input, at flush) came without one.
 enum class ImuMode { kAuto, kLio, kNone };
 
-struct Config {
-  Mode mode = Mode::kKnn;
-
-  // LiDAR -> IMU extrinsic: p_imu = T_imu_lidar * p_lidar.
-  Eigen::Isometry3d T_imu_lidar = Eigen::Isometry3d::Identity();
-
-  // --- preprocess ------------------------------------------------------------------------------
-  double min_range = 0.5;    // metres; closer points (the vehicle itself) are dropped
-  double max_range = 150.0;  // metres
-  int point_stride = 1;      // keep every n-th point (1 = all)
-  TimeFieldOptions time;     // per-point time conventions (time_field.hpp)
-
-  // --- downsample and map ------------------------------------------------------------------------
-  double scan_voxel_size = 0.5;  // metres, voxel grid applied to the de-skewed scan
-  VoxelMapOptions map;           // kNN map (voxel_map.hpp): 0.5 m voxels, LRU bound
-  double map_radius = 150.0;     // voxels farther than this from the sensor are dropped; 0 = off
-
-  // --- IMU -------------------------------------------------------------------------------------
-  ImuMode imu_mode = ImuMode::kAuto;
+// --- the YAML section imu: ----------------------------------------------------------------------
+// The YAML keys imu.init_* (and imu.moving_start*, imu.acc_scale, imu.gravity) fill imu.init,
+// imu.<x>_noise fills imu.noise.<x>.
+struct ImuOptions {
+  ImuMode mode = ImuMode::kAuto;
   // Seconds of scans without any IMU sample after which kAuto decides "no IMU". Scans wait (are
   // not lost) meanwhile. Long enough for an IMU driver that starts a moment after the LiDAR's.
-  double imu_auto_wait_s = 2.0;
-  LidarOnlyOptions lidar_only;  // imu_mode none (hypothesis_search.hpp), YAML section lidar_only:
-  ImuInitOptions init;         // static initialization (imu_init.hpp)
-  ImuNoise noise;              // continuous-time noise densities (imu_propagation.hpp)
-  double max_imu_gap_s = 0.5;  // longer gaps between IMU samples are bridged or re-anchored
+  double auto_wait_s = 2.0;
+  ImuInitOptions init;     // static initialization (imu_init.hpp)
+  ImuNoise noise;          // continuous-time noise densities (imu_propagation.hpp)
+  double max_gap_s = 0.5;  // longer gaps between IMU samples are bridged or re-anchored
   // A gap between valid IMU samples longer than this is counted (InputStats::imu_gaps) and named
-  // in one WARN line (gaps beyond max_imu_gap_s in the bridge / IMU-loss line): even a gap the
+  // in one WARN line (gaps beyond imu.max_gap_s in the bridge / IMU-loss line): even a gap the
   // propagation integrates across unnoticed says the driver or the link drops samples.
-  double imu_max_gap_warn_s = 0.1;
+  double max_gap_warn_s = 0.1;
   // IMU loss (docs/behaviour.md, "IMU loss"): a scan whose end lies more than this beyond the
-  // last IMU sample, while later scans show the stream has stalled (max_imu_gap_s), is registered
+  // last IMU sample, while later scans show the stream has stalled (imu.max_gap_s), is registered
   // LiDAR-only (constant-velocity model seeded from the filter's velocity and turn rate, the
   // guesses of hypothesis_search.hpp), keeping map, gravity and biases; LIO resumes, re-anchored,
   // when IMU samples are back. Scans closer to the last sample are propagated with it held
@@ -270,13 +263,13 @@ struct Config {
   // simulated drives the LiDAR-only registration was the more accurate from a quarter second on
   // (docs/decisions.md, "IMU loss timeout"). Shorter values gain nothing: the scan interval is
   // 0.1 s.
-  double imu_loss_timeout_s = 0.25;
+  double loss_timeout_s = 0.25;
   // The fine update's prior about the coarse pose for those scans (as lidar_only.prior_*_std).
   // Looser than LiDAR-only's own: the map the fallback registers against was built with the
   // IMU and the coarse alignment starts from the filter's motion, so the scan's own residuals
   // are worth more than the guess; a tight prior held the pose off the map by centimetres.
-  double imu_loss_prior_pos_std = 0.3;  // m
-  double imu_loss_prior_rot_std = 0.1;  // rad
+  double loss_prior_pos_std = 0.3;  // m
+  double loss_prior_rot_std = 0.1;  // rad
   // A gap between IMU samples up to this long, without scans that needed the LiDAR-only
   // fallback meanwhile (both streams silent), is bridged: state and map are kept, the IMU is
   // integrated across the gap from the samples on either side (as if it had been constant), and
@@ -285,9 +278,27 @@ struct Config {
   // grow with the square of the gap and registration (0.5 m residual gates) only recovers small
   // ones (docs/decisions.md, "IMU gap bridging"). After a longer gap the first scan is registered
   // LiDAR-only and LIO re-anchors (no reset). 0 = never bridge by integration.
-  double max_imu_gap_bridge_s = 2.5;
+  double max_gap_bridge_s = 2.5;
   double gap_acc_std = 1.0;    // m/s^2, unmeasured acceleration assumed during a bridged gap
   double gap_gyro_std = 0.05;  // rad/s, unmeasured turn rate assumed during a bridged gap
+};
+
+// --- the core ------------------------------------------------------------------------------------
+enum class Mode { kKnn, kPpf };
+
+struct Config {
+  Mode mode = Mode::kKnn;
+
+  // LiDAR -> IMU extrinsic: p_imu = T_imu_lidar * p_lidar.
+  Eigen::Isometry3d T_imu_lidar = Eigen::Isometry3d::Identity();
+
+  // One member per YAML section, named as the section (config/reference.yaml).
+  PreprocessConfig preprocess;  // range and stride filter, scan voxel grid
+  TimeFieldOptions time;        // per-point time conventions (time_field.hpp)
+  VoxelMapOptions map;          // kNN map (voxel_map.hpp): 0.5 m voxels, LRU bound, map.radius
+
+  ImuOptions imu;               // YAML section imu: (mode, init, noise, gaps, IMU loss)
+  LidarOnlyOptions lidar_only;  // imu.mode none (hypothesis_search.hpp), YAML section lidar_only:
 
   // --- registration ----------------------------------------------------------------------------
   IekfOptions iekf;  // max 4 iterations, degeneracy thresholds (iekf.hpp)

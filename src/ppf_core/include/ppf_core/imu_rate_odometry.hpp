@@ -32,8 +32,8 @@ namespace ppf {
 class ImuRateOdometry {
  public:
   struct Options {
-    ImuNoise noise;  // the filter's process noise (Config::noise), so the covariance grows alike
-    // Multiplies raw accelerations (Config::init.acc_scale); 0 = detect as the initializer does
+    ImuNoise noise;  // the filter's process noise (Config imu.noise), so the covariance grows alike
+    // Multiplies raw accelerations (imu.acc_scale); 0 = detect as the initializer does
     // (a mean accelerometer norm near 1 means the driver reports in g).
     double acc_scale = 0.0;
     // Seconds of samples kept for re-propagation: longer than a scan takes from its end to its

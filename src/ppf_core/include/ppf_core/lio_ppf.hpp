@@ -13,7 +13,7 @@
 //
 // Pipeline per scan (timings in ScanResult::timings):
 //   preprocess  decode layout and per-point time (time_field.hpp), drop NaN points
-//   downsample  stride/range filter and voxel grid (Config::scan_voxel_size, 0.5 m) of the raw
+//   downsample  stride/range filter and voxel grid (preprocess.scan_voxel_size, 0.5 m) of the raw
 //               scan; every kept point has its voxel's mean time (preprocess.hpp)
 //   deskew      propagate the IMU to the scan end (midpoint, imu_propagation.hpp) and move every
 //               kept point to the LiDAR pose at the scan END with its own time (deskew.hpp)
@@ -129,8 +129,8 @@ struct ScanResult {
   // IMU predicts, in the same world as before (no jump; its z is not "up", gravity_map says
   // where down is).
   bool lio_started_late = false;
-  // Registered LiDAR-only because the IMU stream is lost mid-run (IMU loss fallback, Config::
-  // imu_loss_timeout_s); the reason says so. The first LIO scan after it has imu_gap_s > 0.
+  // Registered LiDAR-only because the IMU stream is lost mid-run (IMU loss fallback,
+  // imu.loss_timeout_s); the reason says so. The first LIO scan after it has imu_gap_s > 0.
   bool imu_lost = false;
   // The first LIO scan after an IMU loss (the reason says "LIO resumed"; imu_gap_s is the gap).
   bool lio_resumed = false;

@@ -55,7 +55,7 @@ struct EnduranceReport {
   size_t map_capacity_points = 0;  // the LRU bound max_voxels * max_points_per_voxel
   // Process memory: VmRSS when the second half starts and its maximum over the second half.
   double rss_half_mb = 0, rss_max_second_half_mb = 0, rss_start_mb = 0, rss_end_mb = 0;
-  double map_radius = 0;  // m, Config::map_radius
+  double map_radius = 0;  // m, Config map.radius
   // Times the sensor got farther than map_radius from where it was at the previous count (the
   // first: from the start), i.e. everything mapped there had to leave the map.
   int radius_crossings = 0;

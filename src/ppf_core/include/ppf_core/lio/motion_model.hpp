@@ -1,4 +1,4 @@
-// Constant-velocity motion model: the prediction of the LiDAR-only mode (Config::imu_mode none),
+// Constant-velocity motion model: the prediction of the LiDAR-only mode (imu.mode none),
 // where no IMU says how the sensor moved since the last scan.
 //
 // The model keeps the last two registered poses and assumes the body-frame twist between them

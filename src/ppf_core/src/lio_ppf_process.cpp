@@ -152,13 +152,11 @@ double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* t
     }
   } else {
     std::vector<ImuSample> samples(imu.begin(), imu.end());
-    const NavState start = state;
+    // Without a full scale no reading is saturated: nothing to keep for CorrectSaturatedTurn.
+    if (config.imu.noise.gyro_range > 0.0) saturation_start = state;
     PropagateImu(samples, t_end, acc_scale, config.imu.noise, &state, trace, &saturation);
     r->gyro_saturated_s = saturation.seconds;
-    if (saturation.seconds > 0.0) {
-      saturation_start = start;
-      saturation_samples = samples;
-    }
+    if (saturation.seconds > 0.0) saturation_samples = samples;
     for (const ImuSample& s : samples) {
       if (s.stamp_s > t_end && s.stamp_s != samples.front().stamp_s) break;
       gyro_at_scan_end = s.angular_velocity;

@@ -102,7 +102,7 @@ void PropagateImu(const std::vector<ImuSample>& samples, double t_end, double ac
     const Eigen::Matrix3d R0 = state->R_world_imu;
     const Eigen::Matrix3d R1 = NormalizeRotation(R0 * SO3Exp(w * dt));
     const Eigen::Vector3d a_world = 0.5 * (R0 * a0 + R1 * a1) + state->gravity_world;
-    if (!samples.empty()) {
+    if (noise.gyro_range > 0.0 && !samples.empty()) {
       // The samples the segment interpolates between (or holds beyond the ends).
       const double tm = 0.5 * (times[k] + times[k + 1]);
       const size_t ib = std::upper_bound(samples.begin(), samples.end(), tm,

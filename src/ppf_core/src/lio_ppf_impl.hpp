@@ -160,6 +160,8 @@ struct LioPpf::Impl {
   void AddAlongTrackGuesses(const Eigen::Isometry3d& T_world_lidar, const Eigen::Vector3d& v_world,
                             double dt, std::vector<MotionHypothesis>* h) const;
   void RedeskewLidarOnly(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end);
+  void EstimateScanVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
+                            double t_end);
   void CorrectSaturatedTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                             double t_end, ScanResult* r);
 
@@ -221,6 +223,10 @@ struct LioPpf::Impl {
   double imu_back_stamp_s = 0.0;
   double imu_loss_gap_s = 0.0;  // the gap in the IMU stream those samples ended
   bool relocalized_since_loss = false;
+  // The velocity the re-localization scan itself showed (EstimateScanVelocity): LIO resumes
+  // with it, not with the chord over the gap.
+  bool has_scan_velocity = false;
+  Eigen::Vector3d scan_velocity_world = Eigen::Vector3d::Zero();
   double fallback_dt = 0.0;     // interval of the last LiDAR-only scan (velocity at resume)
   StateCov P_before_loss = StateCov::Identity();  // biases' and gravity's, kept for the resume
   // A scan may resume LIO if the first IMU sample back is at most this much after its start: the

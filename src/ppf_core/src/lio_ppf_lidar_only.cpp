@@ -248,4 +248,73 @@ void LioPpf::Impl::RedeskewLidarOnly(const DecodedScan& scan, const std::vector<
   SetLidarOnlyPrior();
 }
 
+// A re-localization after a gap: the scan was de-skewed with the speed the filter had before
+// the gap, and a vehicle that sped up or slowed down meanwhile smears the scan by the difference
+// over one sweep, which shifts and tilts the pose the map then takes. The scan alone (Gauss-Newton
+// steps on the map, wide gate, no prior) measures its pose and its velocity together, from how
+// the early points fit against the late ones; the frame is de-skewed again with that velocity,
+// and LIO resumes with it (ResumeLio) instead of the chord over the gap.
+void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan,
+                                        const std::vector<TimedPoint>& pts, double t_end) {
+  has_scan_velocity = false;
+  if (!(scan.has_time_field || scan.times_estimated)) return;  // nothing to observe it by
+  if (pts.size() != frame.points_lidar.size() || pts.empty()) return;
+  constexpr int kSteps = 8;
+  const Eigen::Isometry3d& T_il = config.T_imu_lidar;
+  // The filter's speed before the gap, along the re-localized heading.
+  const Eigen::Vector3d v_body = motion.pose().linear().transpose() * motion.velocity_world();
+  ImuKnot knot;
+  knot.t = t_end;
+  knot.R = state.R_world_imu;
+  knot.p = state.p_world_imu;
+  knot.v = state.R_world_imu * v_body;
+  knot.omega = motion.angular_velocity();
+  PoseTrace trace;
+  trace.knots.push_back(knot);
+  DeskewToEnd(pts, trace, t_end, T_il, &frame.points_lidar, config.num_threads);
+
+  ScanFrame sample = SampleFrame(frame, config.lidar_only.coarse_points);
+  // The sample's points are every stride-th of the frame (SampleFrame): their times likewise.
+  const int max_points = config.lidar_only.coarse_points;
+  const size_t stride =
+      max_points > 0 ? std::max<size_t>(1, pts.size() / static_cast<size_t>(max_points)) : 1;
+  std::vector<float> dt;
+  dt.reserve(sample.points_lidar.size());
+  for (size_t i = 0; i < pts.size() && dt.size() < sample.points_lidar.size(); i += stride) {
+    dt.push_back(static_cast<float>(pts[i].t - t_end));
+  }
+  // The vertical speed stays the filter's: a sweep's vertical smear is what a pitch of the ground
+  // also makes, and a vehicle's or a walker's vertical speed changes little over a gap.
+  const Eigen::Vector3d up = state.gravity_world.norm() > 1.0
+                                 ? Eigen::Vector3d(state.gravity_world.normalized())
+                                 : Eigen::Vector3d::Zero();
+  Eigen::Isometry3d T = state.T_world_imu() * T_il;
+  Eigen::Vector3d v = knot.v;
+  for (int k = 0; k < kSteps; ++k) {
+    const PoseProbe p =
+        ProbePoseAndVelocity(sample, dt, up, T, config.lidar_only, config.knn, config.iekf,
+                             config.lidar_only.coarse_max_residual);
+    T.linear() = NormalizeRotation(SO3Exp(p.step_rot) * T.linear());
+    T.translation() += p.step_pos;
+    v += p.step_vel;
+    // The velocity's share of each sample point's de-skew, in the scan-end LiDAR frame.
+    const Eigen::Vector3f shift = (T.linear().transpose() * p.step_vel).cast<float>();
+    for (size_t i = 0; i < sample.points_lidar.size(); ++i) sample.points_lidar[i] += dt[i] * shift;
+    if (p.step_rot.norm() < 1e-4 && p.step_pos.norm() < 1e-3 && p.step_vel.norm() < 1e-2) break;
+  }
+  const Eigen::Isometry3d T_world_imu = T * T_il.inverse();
+  state.R_world_imu = T_world_imu.linear();
+  state.p_world_imu = T_world_imu.translation();
+  state.v_world = v;
+  knot.R = state.R_world_imu;
+  knot.p = state.p_world_imu;
+  knot.v = v;
+  trace.knots.front() = knot;
+  DeskewToEnd(pts, trace, t_end, T_il, &frame.points_lidar, config.num_threads);
+  frame.T_world_lidar_predicted = T;
+  SetLidarOnlyPrior();
+  has_scan_velocity = true;
+  scan_velocity_world = v;
+}
+
 }  // namespace ppf

@@ -77,6 +77,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
     t0 = Clock::now();
     coarse = AlignGuesses(t_end);
     RedeskewLidarOnly(scan, pts, t_end);
+    if (Relocating()) EstimateScanVelocity(scan, pts, t_end);
     r.timings.guesses = MsSince(t0);
   }
   SplitScan(&r);
@@ -346,6 +347,12 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
     state.v_world = motion.TangentVelocityWorld();
     v_spread = state.v_world - motion.velocity_world();
   }
+  // A re-localized scan measured its own velocity: the chord over the gap is only its mean.
+  if (relocalized_since_loss && has_scan_velocity) {
+    state.v_world = scan_velocity_world;
+    v_spread.setZero();
+  }
+  has_scan_velocity = false;
   // The pose is as good as the last LiDAR-only update made it; the velocity is the difference
   // of two such poses over the scan interval. Neither is correlated with the rest any more.
   const Eigen::Matrix3d P_rot = state.P.block<3, 3>(kRot, kRot);
@@ -621,7 +628,12 @@ void LioPpf::Impl::ReportRelocalization(ScanResult* r) {
   std::ostringstream os;
   os.precision(3);
   os << "re-localized after " << fallback_dt << " s without data: " << r->motion_guess
-     << ", fit " << r->fit << " (the map is extended again once LIO confirms the pose)";
+     << ", fit " << r->fit;
+  if (has_scan_velocity) {
+    os << ", speed " << scan_velocity_world.norm() << " m/s from the scan's own smear ("
+       << motion.velocity_world().norm() << " before the gap)";
+  }
+  os << " (the map is extended again once LIO confirms the pose)";
   Append(&r->reason, os.str());
   Log(LogLevel::kWarn, os.str());
 }

@@ -151,15 +151,15 @@ INSTANTIATE_TEST_SUITE_P(
         // Both streams silent for 3 s while accelerating: longer than the IMU bridges, so the
         // first scan after it is re-localized LiDAR-only from guesses along the way (the turn
         // extrapolated about the vertical only, on the kNN map alone, extending no map), and LIO
-        // resumes with the position as uncertain as a re-localization leaves it. Found again
-        // (without the guesses along the velocity 6 m off; with the roll and pitch rates carried
-        // over the gap, tilted by over 1 deg), within the full bounds 1 s after; but that scan's
-        // own pose carries the constant-velocity de-skew's error: APE 5x and a tilt up to
-        // 0.55 deg remain (not yet the full bounds).
+        // resumes with the position as uncertain as a re-localization leaves it and the velocity
+        // the scan's own smear showed. Found again within the full bounds 1 s after; the APE and
+        // tilt bounds are looser than the full ones: the map ahead of the re-localized scan
+        // holds little ground, so its height is pinned weakly, and LIO keeps what it got
+        // (docs/behaviour.md, "IMU loss").
         Case{"silence3_knn", kUrban, "vlp16", 12, "--silence 6:3", 9, kKnn, Case::kRelocated,
-             0.05, 0.3, 5.5},
+             0.05, 0.3, 3.5},
         Case{"silence3_ppf", kUrban, "vlp16", 12, "--silence 6:3", 9, kPpf, Case::kRelocated,
-             0.05, 0.3, 5.5},
+             0.05, 0.3, 3.5},
         // An IMU gap of 0.5 s in the first turn (14-17 s), bridged by integration, each scan
         // across it widened for its part of the gap: heading, position and APE within the full
         // bounds; the tilt up to 0.1 deg above the undisturbed run's (not yet the full bound).

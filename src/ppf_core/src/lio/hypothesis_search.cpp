@@ -45,11 +45,16 @@ NavState StateAt(const Eigen::Isometry3d& T_world_lidar, const Eigen::Isometry3d
 
 }  // namespace
 
-PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
-                    const LidarOnlyOptions& options, const KnnOptions& knn,
-                    const IekfOptions& iekf, double wide_gate) {
-  using Mat6 = Eigen::Matrix<double, 6, 6>;
-  using Vec6 = Eigen::Matrix<double, 6, 1>;
+namespace {
+
+// The rows of ProbePose, and with point times (dt: seconds from the scan end, per frame point)
+// three more columns: the world velocity over the scan, which moves each point by dt times it.
+template <int N>
+PoseProbe Probe(const ScanFrame& frame, const std::vector<float>* dt,
+                const Eigen::Matrix3d& vel_space, const Eigen::Isometry3d& T_world_lidar, const LidarOnlyOptions& options,
+                const KnnOptions& knn, const IekfOptions& iekf, double wide_gate) {
+  using MatN = Eigen::Matrix<double, N, N>;
+  using VecN = Eigen::Matrix<double, N, 1>;
   PoseProbe probe;
   if (frame.points_lidar.empty() || frame.map == nullptr || frame.map->size() == 0) return probe;
   const VoxelMap& map = *frame.map;
@@ -57,16 +62,17 @@ PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lid
   const long n = static_cast<long>(frame.points_lidar.size());
   const Eigen::Vector3d c = T_world_lidar.translation();
   long covered = 0, inliers = 0, rows = 0;
-  Mat6 JtJ = Mat6::Zero();
-  Vec6 Jtr = Vec6::Zero();
+  double dt2 = 0.0;
+  MatN JtJ = MatN::Zero();
+  VecN Jtr = VecN::Zero();
 #ifdef _OPENMP
   const int threads = knn.num_threads > 0 ? knn.num_threads : omp_get_max_threads();
 #endif
-#pragma omp parallel num_threads(threads) reduction(+ : covered, inliers, rows)
+#pragma omp parallel num_threads(threads) reduction(+ : covered, inliers, rows, dt2)
   {
     std::vector<Eigen::Vector3f> nn;
-    Mat6 JtJ_t = Mat6::Zero();
-    Vec6 Jtr_t = Vec6::Zero();
+    MatN JtJ_t = MatN::Zero();
+    VecN Jtr_t = VecN::Zero();
 #pragma omp for schedule(dynamic, 256)
     for (long i = 0; i < n; ++i) {
       const Eigen::Vector3d p =
@@ -80,9 +86,14 @@ PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lid
       if (std::abs(r) < options.fit_gate) ++inliers;
       if (!(std::abs(r) < wide_gate)) continue;
       ++rows;
-      Vec6 j;
-      j.head<3>() = (p - c).cross(normal);
-      j.tail<3>() = normal;
+      VecN j;
+      j.template head<3>() = (p - c).cross(normal);
+      j.template segment<3>(3) = normal;
+      if constexpr (N == 9) {
+        const double t = (*dt)[static_cast<size_t>(i)];
+        j.template tail<3>() = t * (vel_space * normal);
+        dt2 += t * t;
+      }
       JtJ_t.noalias() += j * j.transpose();
       Jtr_t.noalias() += j * r;
     }
@@ -99,10 +110,10 @@ PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lid
     probe.score.fit = static_cast<double>(inliers) / static_cast<double>(covered);
   }
   probe.rows = static_cast<size_t>(rows);
-  if (rows < 6) return probe;
+  if (rows < N) return probe;
   // Only along the directions the rows pin (the IEKF's thresholds): in a corridor the scan says
   // nothing about the position along it, and a pseudo-step there would be noise.
-  Mat6 proj = Mat6::Zero();
+  MatN proj = MatN::Zero();
   auto strong = [](const Eigen::Matrix3d& info, double min_eig) {
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(info);
     Eigen::Matrix3d p = Eigen::Matrix3d::Zero();
@@ -111,16 +122,44 @@ PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lid
     }
     return p;
   };
-  proj.topLeftCorner<3, 3>() = strong(JtJ.topLeftCorner<3, 3>(), iekf.degeneracy_min_eig_rotation);
-  proj.bottomRightCorner<3, 3>() =
-      strong(JtJ.bottomRightCorner<3, 3>(), iekf.degeneracy_min_eig_translation);
-  const Mat6 A = proj * JtJ * proj + (Mat6::Identity() - proj);
-  const Vec6 step = -A.ldlt().solve(proj * Jtr);
+  proj.template block<3, 3>(0, 0) =
+      strong(JtJ.template block<3, 3>(0, 0), iekf.degeneracy_min_eig_rotation);
+  proj.template block<3, 3>(3, 3) =
+      strong(JtJ.template block<3, 3>(3, 3), iekf.degeneracy_min_eig_translation);
+  if constexpr (N == 9) {
+    // A velocity moves a point by its time from the scan end: the translation's threshold,
+    // scaled by the rows' mean squared time, is the same evidence per row.
+    proj.template block<3, 3>(6, 6) = strong(JtJ.template block<3, 3>(6, 6),
+                                             iekf.degeneracy_min_eig_translation * dt2 / rows);
+  }
+  const MatN A = proj * JtJ * proj + (MatN::Identity() - proj);
+  const VecN step = -A.ldlt().solve(proj * Jtr);
   if (step.allFinite()) {
-    probe.step_rot = step.head<3>();
-    probe.step_pos = step.tail<3>();
+    probe.step_rot = step.template head<3>();
+    probe.step_pos = step.template segment<3>(3);
+    if constexpr (N == 9) probe.step_vel = step.template tail<3>();
   }
   return probe;
+}
+
+}  // namespace
+
+PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+                    const LidarOnlyOptions& options, const KnnOptions& knn,
+                    const IekfOptions& iekf, double wide_gate) {
+  return Probe<6>(frame, nullptr, Eigen::Matrix3d::Zero(), T_world_lidar, options, knn, iekf,
+                  wide_gate);
+}
+
+PoseProbe ProbePoseAndVelocity(const ScanFrame& frame, const std::vector<float>& dt,
+                               const Eigen::Vector3d& fixed_axis,
+                               const Eigen::Isometry3d& T_world_lidar,
+                               const LidarOnlyOptions& options, const KnnOptions& knn,
+                               const IekfOptions& iekf, double wide_gate) {
+  if (dt.size() != frame.points_lidar.size()) return PoseProbe();
+  const Eigen::Vector3d u = fixed_axis.norm() > 0.0 ? fixed_axis.normalized() : fixed_axis;
+  const Eigen::Matrix3d space = Eigen::Matrix3d::Identity() - u * u.transpose();
+  return Probe<9>(frame, &dt, space, T_world_lidar, options, knn, iekf, wide_gate);
 }
 
 FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,

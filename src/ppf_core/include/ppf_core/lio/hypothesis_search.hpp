@@ -75,10 +75,22 @@ struct PoseProbe {
   FitScore score;
   Eigen::Vector3d step_rot = Eigen::Vector3d::Zero();  // rad, world frame
   Eigen::Vector3d step_pos = Eigen::Vector3d::Zero();  // m, world frame
+  Eigen::Vector3d step_vel = Eigen::Vector3d::Zero();  // m/s, world frame (ProbePoseAndVelocity)
   size_t rows = 0;
 };
 PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
                     const LidarOnlyOptions& options, const KnnOptions& knn,
                     const IekfOptions& iekf, double wide_gate);
+
+// ProbePose with the velocity the scan was taken at: dt holds each frame point's time from the
+// scan end (seconds, <= 0), and a world velocity v moves the point by v * dt. The de-skew's
+// smear is what observes it: a scan de-skewed with the wrong speed bends the walls it saw early
+// against those it saw late. Directions of the velocity the rows do not pin take no step, nor
+// does the velocity along fixed_axis (zero vector: none fixed).
+PoseProbe ProbePoseAndVelocity(const ScanFrame& frame, const std::vector<float>& dt,
+                               const Eigen::Vector3d& fixed_axis,
+                               const Eigen::Isometry3d& T_world_lidar,
+                               const LidarOnlyOptions& options, const KnnOptions& knn,
+                               const IekfOptions& iekf, double wide_gate);
 
 }  // namespace ppf

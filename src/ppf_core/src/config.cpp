@@ -180,6 +180,7 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("knn.plane_threshold", &c->knn.plane_threshold);
   t.Add("knn.min_plane_spread", &c->knn.min_plane_spread);
   t.Add("knn.max_residual", &c->knn.max_residual);
+  t.Add("knn.search_again_distance", &c->knn.search_again_distance);
 
   t.Add("num_threads", &c->num_threads);
 
@@ -340,6 +341,8 @@ void ValidateIekfAndKnn(Config* c, Fixer& fix) {
   fix(!(c->knn.max_neighbor_distance > 0.0), "knn.max_neighbor_distance",
       &c->knn.max_neighbor_distance, 1.0);
   fix(!(c->knn.max_residual > 0.0), "knn.max_residual", &c->knn.max_residual, 0.5);
+  fix(!(c->knn.search_again_distance >= 0.0), "knn.search_again_distance",
+      &c->knn.search_again_distance, 0.0);
 }
 
 // A rotation that is not one (rounded digits in a YAML file) is re-orthonormalized; a broken one

@@ -514,6 +514,10 @@ void PrintHelp() {
          "                        with python3). A peer that is missing or whose dependencies\n"
          "                        are not installed gets one line saying so; ours prints\n"
          "                        alone and the exit code does not depend on the peers.\n"
+         "  --omp-wait-policy P   passive | active | default: OMP_WAIT_POLICY of every child\n"
+         "                        (ours and the peers'); default passive, as the node's\n"
+         "                        core.omp_wait_policy; an OMP_WAIT_POLICY already in the\n"
+         "                        environment wins; default: each child's own\n"
          "  -h, --help            this text\n";
 }
 
@@ -594,6 +598,7 @@ int main(int argc, char** argv) {
   const std::string reader = SelfDir() + "/ppf_offline";
   std::string ppf_offline = reader;
   std::string peers_dir;
+  std::string omp_wait_policy = "passive";
   auto own = [&](int argc_, char** argv_, int* i, std::string* error) {
     const std::string a = argv_[*i];
     if (a == "--callgrind") {
@@ -606,6 +611,19 @@ int main(int argc, char** argv) {
         return -1;
       }
       ppf_offline = argv_[++*i];
+      return 1;
+    }
+    if (a == "--omp-wait-policy") {
+      if (*i + 1 >= argc_) {
+        *error = "missing value after --omp-wait-policy";
+        return -1;
+      }
+      omp_wait_policy = argv_[++*i];
+      if (omp_wait_policy != "passive" && omp_wait_policy != "active" &&
+          omp_wait_policy != "default") {
+        *error = "--omp-wait-policy: passive, active or default";
+        return -1;
+      }
       return 1;
     }
     if (a == "--peers") {
@@ -627,6 +645,11 @@ int main(int argc, char** argv) {
   }
   if (opts.duration <= 0) opts.duration = opts.short_form ? kShortDuration : kDefaultDuration;
   const int threads = opts.threads >= 0 ? opts.threads : kDefaultThreads;
+  // Inherited by every child: libgomp reads it when a child starts. Spinning idle workers wait
+  // for descheduled ones on a loaded machine; an older --ppf-offline does not set it itself.
+  if (omp_wait_policy != "default" && std::getenv("OMP_WAIT_POLICY") == nullptr) {
+    setenv("OMP_WAIT_POLICY", omp_wait_policy == "active" ? "ACTIVE" : "PASSIVE", 1);
+  }
   std::vector<ppf::tools::SequenceSpec> sequences;
   if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
   const fs::path runs = fs::path(opts.workdir) / "runs";

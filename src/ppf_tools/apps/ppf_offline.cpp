@@ -54,6 +54,12 @@ Runs the LIO-PPF core on a rosbag2 bag (sqlite3 .db3 or MCAP) or a ROS 1 .bag wi
                         seconds after the first message (with --imu-gap: scans lost during an
                         IMU dropout); K = 1 drops all of them (a burst, needs S L)
   --threads N           OpenMP threads for the core (default: config, else all cores)
+  --omp-wait-policy P   passive | active | default: how idle OpenMP threads wait (libgomp's
+                        OMP_WAIT_POLICY; default passive, as the node's core.omp_wait_policy:
+                        spinning threads collapse the core on a loaded machine). Applied with
+                        more than one thread by re-executing once with OMP_WAIT_POLICY set
+                        (under valgrind add --trace-children=yes); an OMP_WAIT_POLICY already
+                        in the environment wins; default: libgomp's own
   --dump-scan N         write scan N's registered points and skeleton planes (N counts every
                         scan result in bag order from 0; the scan must have a pose) to
                         --dump-dir: scan_points.csv (x,y,z world frame, PPF label),
@@ -91,6 +97,7 @@ struct Args {
   std::string bag, mode, out = "trajectory.tum", format = "tum", frame = "imu", stats, planes,
       points_topic, imu_topic, dump_dir = ".";
   int threads = -1;
+  std::string omp_wait_policy = "passive";
   long dump_scan = -1;
   std::string map_out, local_map_out;
   double map_voxel = 0.1;
@@ -167,6 +174,12 @@ Args ParseArgs(int argc, char** argv) {
       }
     } else if (arg == "--threads") {
       a.threads = std::atoi(value(i).c_str());
+    } else if (arg == "--omp-wait-policy") {
+      a.omp_wait_policy = value(i);
+      if (a.omp_wait_policy != "passive" && a.omp_wait_policy != "active" &&
+          a.omp_wait_policy != "default") {
+        Fail("--omp-wait-policy: passive, active or default");
+      }
     } else if (arg == "--dump-scan") {
       const std::string v = value(i);
       char* end = nullptr;
@@ -402,10 +415,25 @@ void PrintRunSummary(const Args& args, const ppf::Config& config,
 
 }  // namespace
 
+// libgomp reads OMP_WAIT_POLICY when it is loaded, before main: the process re-executes itself
+// once with it set (nothing opened or written yet). One thread has no team to wait in.
+void ApplyOmpWaitPolicy(const std::string& policy, int threads, char** argv) {
+  if (policy == "default" || threads == 1 || std::getenv("OMP_WAIT_POLICY") != nullptr) return;
+  setenv("OMP_WAIT_POLICY", policy == "active" ? "ACTIVE" : "PASSIVE", 1);
+  char self[4096];
+  const ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
+  if (n > 0) {
+    self[n] = '\0';
+    execv(self, argv);
+  }
+  std::cerr << "ppf_offline: could not apply OMP_WAIT_POLICY (re-exec failed); continuing\n";
+}
+
 int main(int argc, char** argv) {
   const Args args = ParseArgs(argc, argv);
   if (args.read_only) return ReadOnly(args);
   const ppf::Config config = LoadConfig(args);
+  ApplyOmpWaitPolicy(args.omp_wait_policy, config.num_threads, argv);
 
   ProgressBar progress(!args.quiet);
   ppf::tools::OfflineOptions options;

@@ -222,6 +222,10 @@ struct KnnOptions {
   // Metres; larger residuals are outliers. Wide enough for the prediction's error; the IEKF's
   // refined gate (IekfOptions::refined_gate) narrows it once the estimate is near.
   double max_residual = 0.5;
+  // Metres; > 0: within one scan a point keeps the neighbours (and their plane) of its last search
+  // while its world position stays within this distance of where that search was made; the row
+  // itself is always evaluated at the current pose. 0: every iteration searches again.
+  double search_again_distance = 0.0;
   int num_threads = 0;                // 0 = OpenMP default
 };
 

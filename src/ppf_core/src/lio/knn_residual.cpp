@@ -57,6 +57,9 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
   ok.assign(indices_.size(), 0);
   const size_t k = static_cast<size_t>(std::max(3, options_.k));
   const bool cache = k <= kMaxCachedK && fits_.size() == indices_.size();
+  const float keep2 = static_cast<float>(options_.search_again_distance *
+                                         options_.search_again_distance);
+  const bool keep = cache && options_.search_again_distance > 0.0;
 #ifdef _OPENMP
   const int threads = options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
 #endif
@@ -67,26 +70,41 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
     for (long j = 0; j < n; ++j) {
       const Eigen::Vector3d p_l = frame_->points_lidar[indices_[static_cast<size_t>(j)]].cast<double>();
       const Eigen::Vector3d p_w = T_world_lidar * p_l;
-      if (map.GetClosest(p_w.cast<float>(), k, options_.max_neighbor_distance, &nn) < k) continue;
+      const Eigen::Vector3f q_w = p_w.cast<float>();
       Eigen::Vector3d normal = Eigen::Vector3d::Zero();
       double d = 0.0;
       CachedFit* fit = cache ? &fits_[static_cast<size_t>(j)] : nullptr;
-      if (fit != nullptr && fit->count == nn.size() &&
-          std::equal(nn.begin(), nn.end(), fit->nn)) {
-        if (!fit->ok) continue;
+      // The last search's neighbours while the point stays near where it was made: a later
+      // iteration moves most points by far less than the map's point spacing.
+      if (keep && fit->searched && (q_w - fit->searched_at).squaredNorm() < keep2) {
+        if (!fit->found || !fit->ok) continue;
         normal = fit->normal;
         d = fit->d;
       } else {
-        const bool ok_fit =
-            FitPlane(nn, options_.plane_threshold, &normal, &d, options_.min_plane_spread);
+        const bool found = map.GetClosest(q_w, k, options_.max_neighbor_distance, &nn) >= k;
         if (fit != nullptr) {
-          std::copy(nn.begin(), nn.end(), fit->nn);
-          fit->count = nn.size();
-          fit->ok = ok_fit;
-          fit->normal = normal;
-          fit->d = d;
+          fit->searched = true;
+          fit->found = found;
+          fit->searched_at = q_w;
         }
-        if (!ok_fit) continue;
+        if (!found) continue;
+        if (fit != nullptr && fit->count == nn.size() &&
+            std::equal(nn.begin(), nn.end(), fit->nn)) {
+          if (!fit->ok) continue;
+          normal = fit->normal;
+          d = fit->d;
+        } else {
+          const bool ok_fit =
+              FitPlane(nn, options_.plane_threshold, &normal, &d, options_.min_plane_spread);
+          if (fit != nullptr) {
+            std::copy(nn.begin(), nn.end(), fit->nn);
+            fit->count = nn.size();
+            fit->ok = ok_fit;
+            fit->normal = normal;
+            fit->d = d;
+          }
+          if (!ok_fit) continue;
+        }
       }
       const double r = normal.dot(p_w) + d;
       if (!(std::abs(r) < options_.max_residual)) continue;

@@ -1,5 +1,5 @@
 // kNN point-to-plane residuals: the plane validity test of the k neighbours, and the range
-// limit on the points that give rows.
+// limit on the points that give rows, and the neighbours kept between a scan's iterations.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -59,6 +59,53 @@ TEST(KnnResidual, FarPointsGiveNoRowsBeyondResidualMaxRange) {
   EXPECT_EQ(near.size(), within);
   EXPECT_LT(near.size(), all.size());
   for (const PointPlaneRow& r : near) EXPECT_LE(r.point_lidar.norm(), limit);
+}
+
+// search_again_distance: within one scan a point that moved less than it since its search keeps
+// that search's plane (its row is still evaluated at the new pose); one that moved farther
+// searches again and gets what a fresh search gives.
+TEST(KnnResidual, KeepsNeighboursWhileThePointStaysNearItsSearch) {
+  test::KnnRoomFixture f;
+  test::BuildKnnRoom(test::MakeRoomScene(), &f);
+  KnnOptions options;
+  options.search_again_distance = 0.1;
+  KnnResidualProvider keep(options);
+  Eigen::Isometry3d near = Eigen::Isometry3d::Identity();
+  near.translation() = Eigen::Vector3d(0.06, -0.04, 0.02);  // 0.075 m
+  Eigen::Isometry3d far = Eigen::Isometry3d::Identity();
+  far.translation() = Eigen::Vector3d(0.3, 0.0, 0.0);
+  std::vector<PointPlaneRow> first, kept, again;
+  keep.BeginScan(f.frame);
+  keep.ComputeRows(Eigen::Isometry3d::Identity(), &first);
+  keep.ComputeRows(near, &kept);
+  ASSERT_GT(first.size(), 100u);
+  ASSERT_EQ(kept.size(), first.size());
+  for (size_t i = 0; i < kept.size(); ++i) {
+    EXPECT_TRUE(kept[i].point_lidar == first[i].point_lidar);
+    EXPECT_TRUE(kept[i].normal_world == first[i].normal_world);
+    EXPECT_EQ(kept[i].offset, first[i].offset);
+  }
+  // A new search from there finds other neighbours for some points (noisy map): other planes.
+  auto same = [](const std::vector<PointPlaneRow>& a, const std::vector<PointPlaneRow>& b) {
+    if (a.size() != b.size()) return false;
+    for (size_t i = 0; i < a.size(); ++i) {
+      if (!(a[i].point_lidar == b[i].point_lidar) || !(a[i].normal_world == b[i].normal_world) ||
+          a[i].offset != b[i].offset) {
+        return false;
+      }
+    }
+    return true;
+  };
+  KnnResidualProvider fresh;
+  std::vector<PointPlaneRow> searched_near, searched_far;
+  fresh.BeginScan(f.frame);
+  fresh.ComputeRows(near, &searched_near);
+  EXPECT_FALSE(same(searched_near, first));
+  keep.ComputeRows(far, &again);
+  fresh.BeginScan(f.frame);
+  fresh.ComputeRows(far, &searched_far);
+  EXPECT_TRUE(same(again, searched_far));
+  EXPECT_FALSE(same(again, first));
 }
 
 }  // namespace

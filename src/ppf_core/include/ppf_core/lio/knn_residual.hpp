@@ -41,6 +41,11 @@ class KnnResidualProvider : public ResidualProvider {
   struct CachedFit {
     Eigen::Vector3f nn[kMaxCachedK];
     size_t count = 0;  // 0: nothing cached
+    // Where the last search of this scan was made and whether it found k neighbours; with
+    // search_again_distance its result stands while the point stays near there.
+    Eigen::Vector3f searched_at = Eigen::Vector3f::Zero();
+    bool searched = false;
+    bool found = false;
     bool ok = false;
     Eigen::Vector3d normal = Eigen::Vector3d::Zero();
     double d = 0.0;

@@ -404,7 +404,7 @@ void TimeFieldDecoder::Detect(const CloudView& cloud, const FieldDesc* time_fiel
       log_(LogLevel::kWarn,
            std::string("no per-point time field (looked for ") +
                (options_.field.empty() ? "t/time/timestamp/time_stamp/offset_time"
-                                            : options_.field) +
+                                       : options_.field) +
                "): " +
                (options_.no_time_policy == NoTimePolicy::kAzimuth
                     ? "estimating point times from azimuth (spinning LiDAR assumed)"

@@ -56,9 +56,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   detecting.Decode(*view, &scan, &error);
   detecting.Decode(*view, &scan, &error);  // the already-detected path
   ppf::TimeFieldOptions forced;
-  forced.field_name = "t";
+  forced.field = "t";
   forced.reference = ppf::TimeReference::kAbsolute;
-  forced.stamp_position = ppf::StampPosition::kEnd;
+  forced.stamp = ppf::StampPosition::kEnd;
   ppf::TimeFieldDecoder(forced).Decode(*view, &scan, &error);
   return 0;
 }

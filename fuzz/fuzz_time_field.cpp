@@ -48,10 +48,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   ppf::TimeFieldOptions options;
   const uint8_t opt = in.Take<uint8_t>();
   options.reference = static_cast<ppf::TimeReference>(opt % 3);
-  options.stamp_position = static_cast<ppf::StampPosition>((opt / 3) % 3);
+  options.stamp = static_cast<ppf::StampPosition>((opt / 3) % 3);
   options.no_time_policy = (opt & 0x10) ? ppf::NoTimePolicy::kNoDeskew : ppf::NoTimePolicy::kAzimuth;
   options.azimuth_clockwise = (opt & 0x20) != 0;
-  if (opt & 0x40) options.field_name = kNames[in.Take<uint8_t>() % 10];
+  if (opt & 0x40) options.field = kNames[in.Take<uint8_t>() % 10];
   if (opt & 0x80) options.unit_scale_s = in.Take<double>();
   options.scan_period_s = in.Take<double>();
 

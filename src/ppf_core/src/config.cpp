@@ -73,9 +73,9 @@ ConfigTable CoreConfigTable(Config* c) {
   t.AddCustom(
       "extrinsic.T_imu_lidar",
       [c](const YAML::Node& n, const std::string& k, std::vector<std::string>* w) {
-        ReadTransform(n, k, &c->T_imu_lidar, w);
+        ReadTransform(n, k, &c->extrinsic.T_imu_lidar, w);
       },
-      [c] { return ShowTransform(c->T_imu_lidar); });
+      [c] { return ShowTransform(c->extrinsic.T_imu_lidar); });
   t.AddHint("extrinsic", "transforms are named T_<to>_<from>");
 
   t.Add("preprocess.min_range", &c->preprocess.min_range);
@@ -83,13 +83,13 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("preprocess.point_stride", &c->preprocess.point_stride);
   t.Add("preprocess.scan_voxel_size", &c->preprocess.scan_voxel_size);
 
-  t.Add("time.field", &c->time.field_name);
+  t.Add("time.field", &c->time.field);
   t.Add("time.unit_scale", &c->time.unit_scale_s);
   t.AddEnum("time.reference", &c->time.reference,
             {{"auto", TimeReference::kAuto},
              {"relative", TimeReference::kRelative},
              {"absolute", TimeReference::kAbsolute}});
-  t.AddEnum("time.stamp", &c->time.stamp_position,
+  t.AddEnum("time.stamp", &c->time.stamp,
             {{"auto", StampPosition::kAuto},
              {"start", StampPosition::kStart},
              {"end", StampPosition::kEnd}});
@@ -117,23 +117,23 @@ ConfigTable CoreConfigTable(Config* c) {
   t.AddEnum("imu.mode", &c->imu.mode,
             {{"auto", ImuMode::kAuto}, {"lio", ImuMode::kLio}, {"none", ImuMode::kNone}});
   t.Add("imu.auto_wait", &c->imu.auto_wait_s);
-  t.Add("imu.init_duration", &c->imu.init.duration_s);
-  t.Add("imu.init_min_samples", &c->imu.init.min_samples);
-  t.Add("imu.init_max_acc_std", &c->imu.init.max_acc_std);
-  t.Add("imu.init_max_gyro_std", &c->imu.init.max_gyro_std);
-  t.Add("imu.init_max_gyro_bias", &c->imu.init.max_gyro_bias);
-  t.Add("imu.init_max_gravity_error", &c->imu.init.max_gravity_error);
-  t.Add("imu.moving_start", &c->imu.init.moving_start);
-  t.Add("imu.moving_start_window", &c->imu.init.moving_start_window_s);
-  t.Add("imu.moving_start_max_gravity_error", &c->imu.init.moving_start_max_gravity_error);
-  t.Add("imu.acc_scale", &c->imu.init.acc_scale);
-  t.Add("imu.gravity", &c->imu.init.gravity);
-  t.Add("imu.gyro_noise", &c->imu.noise.gyro);
-  t.Add("imu.acc_noise", &c->imu.noise.acc);
-  t.Add("imu.gyro_bias_noise", &c->imu.noise.gyro_bias);
-  t.Add("imu.acc_bias_noise", &c->imu.noise.acc_bias);
-  t.Add("imu.gravity_dir_noise", &c->imu.noise.gravity_dir);
-  t.Add("imu.gyro_range", &c->imu.noise.gyro_range);
+  t.Add("imu.init.duration", &c->imu.init.duration_s);
+  t.Add("imu.init.min_samples", &c->imu.init.min_samples);
+  t.Add("imu.init.max_acc_std", &c->imu.init.max_acc_std);
+  t.Add("imu.init.max_gyro_std", &c->imu.init.max_gyro_std);
+  t.Add("imu.init.max_gyro_bias", &c->imu.init.max_gyro_bias);
+  t.Add("imu.init.max_gravity_error", &c->imu.init.max_gravity_error);
+  t.Add("imu.init.moving_start", &c->imu.init.moving_start);
+  t.Add("imu.init.moving_start_window", &c->imu.init.moving_start_window_s);
+  t.Add("imu.init.moving_start_max_gravity_error", &c->imu.init.moving_start_max_gravity_error);
+  t.Add("imu.init.acc_scale", &c->imu.init.acc_scale);
+  t.Add("imu.init.gravity", &c->imu.init.gravity);
+  t.Add("imu.noise.gyro", &c->imu.noise.gyro);
+  t.Add("imu.noise.acc", &c->imu.noise.acc);
+  t.Add("imu.noise.gyro_bias", &c->imu.noise.gyro_bias);
+  t.Add("imu.noise.acc_bias", &c->imu.noise.acc_bias);
+  t.Add("imu.noise.gravity_dir", &c->imu.noise.gravity_dir);
+  t.Add("imu.noise.gyro_range", &c->imu.noise.gyro_range);
   t.Add("imu.max_gap", &c->imu.max_gap_s);
   t.Add("imu.max_gap_warn", &c->imu.max_gap_warn_s);
   t.Add("imu.max_gap_bridge", &c->imu.max_gap_bridge_s);
@@ -142,6 +142,20 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("imu.loss_prior_rot_std", &c->imu.loss_prior_rot_std);
   t.Add("imu.gap_acc_std", &c->imu.gap_acc_std);
   t.Add("imu.gap_gyro_std", &c->imu.gap_gyro_std);
+  // The flat spellings these keys had before imu: got its init: and noise: groups; files written
+  // with them load unchanged (config/reference.yaml, "Former spellings").
+  for (const char* k : {"duration", "min_samples", "max_acc_std", "max_gyro_std", "max_gyro_bias",
+                        "max_gravity_error"}) {
+    t.AddAlias(std::string("imu.init_") + k, std::string("imu.init.") + k);
+  }
+  for (const char* k : {"moving_start", "moving_start_window", "moving_start_max_gravity_error",
+                        "acc_scale", "gravity"}) {
+    t.AddAlias(std::string("imu.") + k, std::string("imu.init.") + k);
+  }
+  for (const char* k : {"gyro", "acc", "gyro_bias", "acc_bias", "gravity_dir"}) {
+    t.AddAlias(std::string("imu.") + k + "_noise", std::string("imu.noise.") + k);
+  }
+  t.AddAlias("imu.gyro_range", "imu.noise.gyro_range");
 
   t.Add("lidar_only.good_fit", &c->lidar_only.good_fit);
   t.Add("lidar_only.good_fit_relative", &c->lidar_only.good_fit_relative);
@@ -298,12 +312,12 @@ void ValidateLidarOnly(Config* c, Fixer& fix) {
 }
 
 void ValidateImu(Config* c, Fixer& fix) {
-  fix(!(c->imu.init.duration_s >= 0.0), "imu.init_duration", &c->imu.init.duration_s, 1.0);
-  fix(c->imu.init.min_samples < 2, "imu.init_min_samples", &c->imu.init.min_samples, 2);
+  fix(!(c->imu.init.duration_s >= 0.0), "imu.init.duration", &c->imu.init.duration_s, 1.0);
+  fix(c->imu.init.min_samples < 2, "imu.init.min_samples", &c->imu.init.min_samples, 2);
   fix(!(c->imu.init.moving_start_window_s >= 0.3 && c->imu.init.moving_start_window_s <= 10.0),
-      "imu.moving_start_window", &c->imu.init.moving_start_window_s, 1.5);
-  fix(!(c->imu.init.moving_start_max_gravity_error > 0.0), "imu.moving_start_max_gravity_error",
-      &c->imu.init.moving_start_max_gravity_error, 0.5);
+      "imu.init.moving_start_window", &c->imu.init.moving_start_window_s, 1.5);
+  fix(!(c->imu.init.moving_start_max_gravity_error > 0.0),
+      "imu.init.moving_start_max_gravity_error", &c->imu.init.moving_start_max_gravity_error, 0.5);
   fix(!(c->imu.max_gap_s > 0.0), "imu.max_gap", &c->imu.max_gap_s, 0.5);
   fix(!(c->imu.max_gap_warn_s > 0.0), "imu.max_gap_warn", &c->imu.max_gap_warn_s, 0.1);
   fix(!(c->imu.max_gap_bridge_s >= 0.0), "imu.max_gap_bridge", &c->imu.max_gap_bridge_s, 0.0);
@@ -314,13 +328,13 @@ void ValidateImu(Config* c, Fixer& fix) {
       0.1);
   fix(!(c->imu.gap_acc_std >= 0.0), "imu.gap_acc_std", &c->imu.gap_acc_std, 1.0);
   fix(!(c->imu.gap_gyro_std >= 0.0), "imu.gap_gyro_std", &c->imu.gap_gyro_std, 0.05);
-  fix(!(c->imu.noise.gyro >= 0.0), "imu.gyro_noise", &c->imu.noise.gyro, 0.01);
-  fix(!(c->imu.noise.acc >= 0.0), "imu.acc_noise", &c->imu.noise.acc, 0.02);
-  fix(!(c->imu.noise.gyro_bias >= 0.0), "imu.gyro_bias_noise", &c->imu.noise.gyro_bias, 1e-4);
-  fix(!(c->imu.noise.acc_bias >= 0.0), "imu.acc_bias_noise", &c->imu.noise.acc_bias, 1e-3);
-  fix(!(c->imu.noise.gravity_dir >= 0.0), "imu.gravity_dir_noise", &c->imu.noise.gravity_dir, 0.0);
+  fix(!(c->imu.noise.gyro >= 0.0), "imu.noise.gyro", &c->imu.noise.gyro, 0.01);
+  fix(!(c->imu.noise.acc >= 0.0), "imu.noise.acc", &c->imu.noise.acc, 0.02);
+  fix(!(c->imu.noise.gyro_bias >= 0.0), "imu.noise.gyro_bias", &c->imu.noise.gyro_bias, 1e-4);
+  fix(!(c->imu.noise.acc_bias >= 0.0), "imu.noise.acc_bias", &c->imu.noise.acc_bias, 1e-3);
+  fix(!(c->imu.noise.gravity_dir >= 0.0), "imu.noise.gravity_dir", &c->imu.noise.gravity_dir, 0.0);
   fix(!(c->imu.noise.gyro_range >= 0.0) || !std::isfinite(c->imu.noise.gyro_range),
-      "imu.gyro_range", &c->imu.noise.gyro_range, 0.0);
+      "imu.noise.gyro_range", &c->imu.noise.gyro_range, 0.0);
 }
 
 void ValidateIekfAndKnn(Config* c, Fixer& fix) {
@@ -348,14 +362,14 @@ void ValidateIekfAndKnn(Config* c, Fixer& fix) {
 // A rotation that is not one (rounded digits in a YAML file) is re-orthonormalized; a broken one
 // replaced by the identity.
 void ValidateExtrinsic(Config* c, std::vector<std::string>* notes) {
-  const Eigen::Matrix3d R = c->T_imu_lidar.linear();
-  if (!c->T_imu_lidar.matrix().allFinite() ||
+  const Eigen::Matrix3d R = c->extrinsic.T_imu_lidar.linear();
+  if (!c->extrinsic.T_imu_lidar.matrix().allFinite() ||
       (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-3 || R.determinant() < 0) {
     notes->push_back("extrinsic.T_imu_lidar rotation is not a rotation: re-orthonormalized");
-    if (c->T_imu_lidar.matrix().allFinite() && R.determinant() > 0) {
-      c->T_imu_lidar.linear() = NormalizeRotation(R);
+    if (c->extrinsic.T_imu_lidar.matrix().allFinite() && R.determinant() > 0) {
+      c->extrinsic.T_imu_lidar.linear() = NormalizeRotation(R);
     } else {
-      c->T_imu_lidar = Eigen::Isometry3d::Identity();
+      c->extrinsic.T_imu_lidar = Eigen::Isometry3d::Identity();
       notes->back() = "extrinsic.T_imu_lidar invalid: identity used";
     }
   }

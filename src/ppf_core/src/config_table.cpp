@@ -161,6 +161,20 @@ void ConfigTable::AddHint(const std::string& section, const std::string& hint) {
   hints_.emplace_back(section, hint);
 }
 
+void ConfigTable::AddAlias(const std::string& old_key, const std::string& key) {
+  if (!IsKey(key)) {
+    throw std::logic_error("alias '" + old_key + "' of unknown key '" + key + "'");
+  }
+  aliases_.emplace_back(old_key, key);
+}
+
+bool ConfigTable::IsAlias(const std::string& path) const {
+  for (const auto& alias : aliases_) {
+    if (alias.first == path) return true;
+  }
+  return false;
+}
+
 bool ConfigTable::IsKey(const std::string& path) const {
   for (const Entry& e : entries_) {
     if (e.key == path) return true;
@@ -190,7 +204,7 @@ void ConfigTable::CheckKeys(const YAML::Node& map, const std::string& prefix,
           " is a list or a map; keys must be plain names");
     }
     const std::string path = prefix.empty() ? kv.first.Scalar() : prefix + "." + kv.first.Scalar();
-    if (IsKey(path)) continue;
+    if (IsKey(path) || IsAlias(path)) continue;
     if (IsSection(path)) {
       if (kv.second.IsNull()) continue;  // "section:" with nothing under it: all defaults
       if (!kv.second.IsMap()) {
@@ -213,7 +227,20 @@ void ConfigTable::Apply(const YAML::Node& root, std::vector<std::string>* warnin
   CheckKeys(root, "", warnings);
   for (const Entry& e : entries_) {
     const YAML::Node value = Lookup(root, e.key);
-    if (value && !value.IsNull()) e.set(value, e.key, warnings);
+    const bool given = value && !value.IsNull();
+    for (const auto& [old_key, key] : aliases_) {
+      if (key != e.key) continue;
+      const YAML::Node old = Lookup(root, old_key);
+      if (!old || old.IsNull()) continue;
+      if (given) {
+        warnings->push_back("key '" + old_key + "' ignored: its current spelling '" + key +
+                            "' is also set");
+      } else {
+        warnings->push_back("key '" + old_key + "' read as '" + key + "' (its current spelling)");
+        e.set(old, old_key, warnings);  // an error names the key as the file spells it
+      }
+    }
+    if (given) e.set(value, e.key, warnings);
   }
 }
 

@@ -19,7 +19,7 @@ namespace ppf {
 void LioPpf::Impl::StartLidarOnly(double t) {
   state = NavState();
   state.stamp_s = t;
-  const Eigen::Isometry3d T_world_imu = config.T_imu_lidar.inverse();
+  const Eigen::Isometry3d T_world_imu = config.extrinsic.T_imu_lidar.inverse();
   state.R_world_imu = T_world_imu.linear();
   state.p_world_imu = T_world_imu.translation();
   state.gravity_world = Eigen::Vector3d(0.0, 0.0, -9.80665);
@@ -118,7 +118,7 @@ void LioPpf::Impl::PredictGyro(double t_end, PoseTrace* trace) {
 // The guesses of hypothesis_search.hpp around the model's prediction (state at t_end); the
 // best aligned one becomes the prediction of the update and of the skeleton tracker.
 CoarseAlignment LioPpf::Impl::AlignGuesses(double t_end) {
-  const Eigen::Isometry3d& T_il = config.T_imu_lidar;
+  const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
   const double dt = t_end - motion.stamp();
   const Eigen::Isometry3d T_last = motion.pose();
   const Eigen::Isometry3d T_cv = ExtrapolateModel(t_end);
@@ -235,16 +235,17 @@ void LioPpf::Impl::RedeskewLidarOnly(const DecodedScan& scan, const std::vector<
   for (int i = 0;; ++i) {
     const Eigen::Isometry3d T_before = state.T_world_imu();
     const PoseTrace trace = InterpolatedTrace(motion.pose(), motion.stamp(), T_before, t_end);
-    DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &frame.points_lidar, config.num_threads);
+    DeskewToEnd(pts, trace, t_end, config.extrinsic.T_imu_lidar, &frame.points_lidar,
+                config.num_threads);
     if (i == lo.redeskew_iterations || settled) break;
     SetLidarOnlyPrior();
     provider.BeginScan(frame);
-    const IekfReport rep = IekfUpdate(iekf, config.T_imu_lidar, {&provider}, &state);
+    const IekfReport rep = IekfUpdate(iekf, config.extrinsic.T_imu_lidar, {&provider}, &state);
     const Eigen::Isometry3d d = T_before.inverse() * state.T_world_imu();
     settled = rep.skipped || (SO3Log(d.linear()).norm() < lo.redeskew_min_change &&
                               d.translation().norm() < lo.redeskew_min_change);
   }
-  frame.T_world_lidar_predicted = state.T_world_imu() * config.T_imu_lidar;
+  frame.T_world_lidar_predicted = state.T_world_imu() * config.extrinsic.T_imu_lidar;
   SetLidarOnlyPrior();
 }
 

@@ -61,8 +61,8 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
 
   frame.stamp_s = t_end;
   frame.labels.assign(frame.points_lidar.size(), PointLabel::kScattered);
-  frame.T_imu_lidar = config.T_imu_lidar;
-  frame.T_world_lidar_predicted = state.T_world_imu() * config.T_imu_lidar;
+  frame.T_imu_lidar = config.extrinsic.T_imu_lidar;
+  frame.T_world_lidar_predicted = state.T_world_imu() * config.extrinsic.T_imu_lidar;
   frame.map = &map;
   frame.residual_max_range = config.iekf.residual_max_range;
 
@@ -194,7 +194,8 @@ void LioPpf::Impl::Deskew(const DecodedScan& scan, const std::vector<TimedPoint>
                           const PoseTrace& trace, double t_end) {
   frame = ScanFrame();
   if (scan.has_time_field || scan.times_estimated) {
-    DeskewToEnd(pts, trace, t_end, config.T_imu_lidar, &frame.points_lidar, config.num_threads);
+    DeskewToEnd(pts, trace, t_end, config.extrinsic.T_imu_lidar, &frame.points_lidar,
+                config.num_threads);
   } else {
     frame.points_lidar.reserve(pts.size());
     for (const TimedPoint& tp : pts) frame.points_lidar.push_back(tp.p);
@@ -214,7 +215,7 @@ void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan,
   constexpr int kPasses = 2;
   constexpr int kSteps = 4;
   constexpr double kMinTurnRad = 0.2 * M_PI / 180.0;
-  const Eigen::Isometry3d& T_il = config.T_imu_lidar;
+  const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
   const double wide = config.lidar_only.coarse_max_residual;
   Eigen::Matrix<double, 6, 1> excess = Eigen::Matrix<double, 6, 1>::Zero();
   double first_turn_deg = 0.0;
@@ -410,7 +411,7 @@ IekfReport LioPpf::Impl::Register(double t_end, bool lidar, Eigen::Isometry3d* T
   if (t_end - map_init_stamp_s < iekf.refined_gate_after_s) iekf.refined_gate = 0.0;
   const NavState predicted = state;
   contradicted = false;
-  IekfReport rep = IekfUpdate(iekf, config.T_imu_lidar, providers, &state);
+  IekfReport rep = IekfUpdate(iekf, config.extrinsic.T_imu_lidar, providers, &state);
   // The LiDAR-only scans were aligned from guesses already; the IMU's prediction is checked here.
   if (!lidar && config.consistency.check) {
     const auto t0 = Clock::now();
@@ -432,7 +433,7 @@ IekfReport LioPpf::Impl::Register(double t_end, bool lidar, Eigen::Isometry3d* T
     else
       r->skeleton_residuals += static_cast<size_t>(rep.rows_per_provider[i]);
   }
-  const Eigen::Isometry3d T_world_lidar = state.T_world_imu() * config.T_imu_lidar;
+  const Eigen::Isometry3d T_world_lidar = state.T_world_imu() * config.extrinsic.T_imu_lidar;
   if (skeleton) {
     const auto t0 = Clock::now();
     tracker->Finish(frame, T_world_lidar);
@@ -460,7 +461,7 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
                                                 const std::vector<ResidualProvider*>& providers,
                                                 const IekfReport& rep, ScanResult* r) {
   const ConsistencyOptions& co = config.consistency;
-  const Eigen::Isometry3d& T_il = config.T_imu_lidar;
+  const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
   if (rep.skipped) return rep;
   const double wide = config.lidar_only.coarse_max_residual;
   const ScanFrame sample = SampleFrame(frame, co.fit_points);
@@ -665,7 +666,7 @@ void LioPpf::Impl::FillState(ScanResult* r) const {
   r->T_world_map = WorldFromMap();
   const Eigen::Matrix3d R = r->T_world_map.linear();
   r->T_world_imu = r->T_world_map * state.T_world_imu();
-  r->T_world_lidar = r->T_world_imu * config.T_imu_lidar;
+  r->T_world_lidar = r->T_world_imu * config.extrinsic.T_imu_lidar;
   r->velocity_world = R * state.v_world;
   r->angular_velocity = gyro_at_scan_end - state.gyro_bias;
   if (config.output_deskewed_points) {

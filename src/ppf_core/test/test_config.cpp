@@ -27,7 +27,7 @@ TEST(ConfigYaml, EmptyDocumentKeepsAllDefaults) {
   EXPECT_EQ(c.knn.k, 5);
   EXPECT_EQ(c.knn.plane_threshold, 0.1);
   EXPECT_EQ(c.map.resolution, 0.5);
-  EXPECT_TRUE(c.T_imu_lidar.isApprox(Eigen::Isometry3d::Identity()));
+  EXPECT_TRUE(c.extrinsic.T_imu_lidar.isApprox(Eigen::Isometry3d::Identity()));
 }
 
 TEST(ConfigYaml, PartialSectionsOverrideOnlyTheirKeys) {
@@ -56,14 +56,15 @@ ppf:
   EXPECT_EQ(c.preprocess.scan_voxel_size, 0.3);
   EXPECT_EQ(c.preprocess.min_range,
             Config().preprocess.min_range);  // untouched key of a present section
-  EXPECT_EQ(c.time.field_name, "t");
-  EXPECT_EQ(c.time.stamp_position, StampPosition::kEnd);
+  EXPECT_EQ(c.time.field, "t");
+  EXPECT_EQ(c.time.stamp, StampPosition::kEnd);
   EXPECT_EQ(c.time.no_time_policy, NoTimePolicy::kNoDeskew);
   EXPECT_EQ(c.map.nearby, NearbyType::kNearby27);
   EXPECT_EQ(c.iekf.max_iterations, 3);
-  EXPECT_TRUE(c.T_imu_lidar.translation().isApprox(Eigen::Vector3d(0.1, 0.2, 0.3)));
+  EXPECT_TRUE(c.extrinsic.T_imu_lidar.translation().isApprox(Eigen::Vector3d(0.1, 0.2, 0.3)));
   // 90 deg yaw: lidar x axis is imu y axis.
-  EXPECT_TRUE((c.T_imu_lidar.linear() * Eigen::Vector3d::UnitX()).isApprox(Eigen::Vector3d::UnitY()));
+  EXPECT_TRUE((c.extrinsic.T_imu_lidar.linear() * Eigen::Vector3d::UnitX())
+                  .isApprox(Eigen::Vector3d::UnitY()));
 }
 
 TEST(ConfigYaml, UnknownKeysAreWarnedNotFatal) {
@@ -137,7 +138,7 @@ TEST(ConfigYaml, FuzzedDocumentsNeverThrow) {
   // Mutations of a valid document: every outcome is ok or a clean error, never an exception.
   const std::string base =
       "mode: knn\npreprocess: {min_range: 0.5, max_range: 100}\nmap: {nearby: 19}\n"
-      "imu: {acc_scale: 0}\nextrinsic: {T_imu_lidar: {translation: [0, 0, 0]}}\n";
+      "imu: {init: {acc_scale: 0}}\nextrinsic: {T_imu_lidar: {translation: [0, 0, 0]}}\n";
   const std::string alphabet = "{}[]:,- \n\t\"'#&*!|>%@`abc019.e";
   std::mt19937 rng(99);
   for (int iter = 0; iter < 2000; ++iter) {
@@ -154,6 +155,84 @@ TEST(ConfigYaml, FuzzedDocumentsNeverThrow) {
       EXPECT_FALSE(r.error.empty());
     }
   }
+}
+
+// Files written before imu: got its init: and noise: groups use the flat keys; they load to the
+// same values, each with a warning naming the current key.
+TEST(ConfigYaml, FormerFlatImuKeysLoadAsTheirCurrentSpelling) {
+  Config old_spelling, new_spelling, defaults;
+  const ConfigLoadReport r_old = LoadConfigYamlString(R"(
+imu:
+  init_duration: 2.5
+  init_min_samples: 40
+  init_max_acc_std: 0.4
+  init_max_gyro_std: 0.06
+  init_max_gyro_bias: 0.07
+  init_max_gravity_error: 0.35
+  moving_start: false
+  moving_start_window: 2.0
+  moving_start_max_gravity_error: 0.6
+  acc_scale: 1.0
+  gravity: 9.81
+  gyro_noise: 0.02
+  acc_noise: 0.03
+  gyro_bias_noise: 0.0002
+  acc_bias_noise: 0.002
+  gravity_dir_noise: 0.001
+  gyro_range: 8.7
+)", &old_spelling);
+  const ConfigLoadReport r_new = LoadConfigYamlString(R"(
+imu:
+  init:
+    duration: 2.5
+    min_samples: 40
+    max_acc_std: 0.4
+    max_gyro_std: 0.06
+    max_gyro_bias: 0.07
+    max_gravity_error: 0.35
+    moving_start: false
+    moving_start_window: 2.0
+    moving_start_max_gravity_error: 0.6
+    acc_scale: 1.0
+    gravity: 9.81
+  noise:
+    gyro: 0.02
+    acc: 0.03
+    gyro_bias: 0.0002
+    acc_bias: 0.002
+    gravity_dir: 0.001
+    gyro_range: 8.7
+)", &new_spelling);
+  ASSERT_TRUE(r_old.ok) << r_old.error;
+  ASSERT_TRUE(r_new.ok) << r_new.error;
+  EXPECT_TRUE(r_new.warnings.empty()) << r_new.warnings.front();
+  ASSERT_EQ(r_old.warnings.size(), 17u);
+  EXPECT_EQ(r_old.warnings.front(),
+            "key 'imu.init_duration' read as 'imu.init.duration' (its current spelling)");
+  EXPECT_EQ(r_old.warnings.back(),
+            "key 'imu.gyro_range' read as 'imu.noise.gyro_range' (its current spelling)");
+  const ConfigTable got = CoreConfigTable(&old_spelling), want = CoreConfigTable(&new_spelling),
+                    def = CoreConfigTable(&defaults);
+  int changed = 0;
+  for (const std::string& key : want.Keys()) {
+    EXPECT_EQ(got.ShowValue(key), want.ShowValue(key)) << key;
+    changed += want.ShowValue(key) != def.ShowValue(key);
+  }
+  EXPECT_EQ(changed, 17);  // every key above moved off its default: none was silently dropped
+}
+
+TEST(ConfigYaml, CurrentSpellingWinsOverAFormerOneAndErrorsNameTheKeyAsWritten) {
+  Config c;
+  ConfigLoadReport r = LoadConfigYamlString(
+      "imu:\n  gyro_noise: 0.5\n  noise:\n    gyro: 0.02\n", &c);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(c.imu.noise.gyro, 0.02);
+  EXPECT_EQ(r.warnings, std::vector<std::string>{
+                            "key 'imu.gyro_noise' ignored: its current spelling 'imu.noise.gyro' "
+                            "is also set"});
+  r = LoadConfigYamlString("imu:\n  init_min_samples: many\n", &c);
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(r.error, "key 'imu.init_min_samples': expected an integer, got 'many'");
 }
 
 TEST(ConfigYaml, NullValueKeepsDefault) {
@@ -174,7 +253,7 @@ TEST(ConfigYaml, PresetsLoadWithoutWarnings) {
   }
   Config k;
   ASSERT_TRUE(LoadConfigYaml(std::string(PPF_CONFIG_DIR) + "/kitti_raw.yaml", &k).ok);
-  EXPECT_NEAR(k.T_imu_lidar.translation().x(), 0.81, 0.01);
+  EXPECT_NEAR(k.extrinsic.T_imu_lidar.translation().x(), 0.81, 0.01);
   EXPECT_EQ(k.imu.init.acc_scale, 1.0);
 }
 
@@ -289,7 +368,7 @@ TEST(ReferenceFile, PresetsDifferOnlyInTheirSensorKeys) {
       {"os1_128", {"preprocess.max_range: 120", "ppf.plane_least_inliers: 600"}},
       {"kitti_raw",
        {"extrinsic.T_imu_lidar", "preprocess.max_range: 120", "time.stamp: start",
-        "imu.acc_scale: 1", "ppf.plane_least_inliers: 400"}},
+        "imu.init.acc_scale: 1", "ppf.plane_least_inliers: 400"}},
   };
   for (const auto& [name, want] : expected) {
     Config preset, defaults;
@@ -417,7 +496,7 @@ TEST(BasicFile, HoldsAFewReferenceKeysEachWithTheReferenceMeaning) {
   for (const auto& [key, meaning] : keys) EXPECT_FALSE(meaning.empty()) << key << " undocumented";
   for (const char* key : {"mode", "extrinsic.T_imu_lidar", "time.field", "imu.mode",
                           "preprocess.scan_voxel_size", "map.resolution", "map.radius",
-                          "imu.gyro_noise", "imu.acc_noise", "ppf.beams"}) {
+                          "imu.noise.gyro", "imu.noise.acc", "ppf.beams"}) {
     EXPECT_EQ(keys.count(key), 1u) << key;
   }
   std::string all;

@@ -52,7 +52,7 @@ RunOutput Simulate(const RunOptions& o, Config config) {
   std::normal_distribution<double> n(0.0, 1.0);
   const Eigen::Vector3d gyro_bias(0.003, -0.002, 0.004);
 
-  config.T_imu_lidar = o.T_imu_lidar;
+  config.extrinsic.T_imu_lidar = o.T_imu_lidar;
   // Single thread: deterministic and fair on shared CI cores (threading is not under test here).
   config.num_threads = 1;
   LioPpf lio(config);
@@ -315,7 +315,7 @@ TEST(EndToEnd, OusterStyleTimeImuInGStampAtEnd) {
   o.enc.relative_to_end = false;  // offsets from the first point, header at the end
   o.acc_unit = 9.80665;
   Config config;
-  config.time.stamp_position = StampPosition::kEnd;  // not detectable from >= 0 offsets
+  config.time.stamp = StampPosition::kEnd;  // not detectable from >= 0 offsets
   const RunOutput run = Simulate(o, config);
   CheckAccuracy(run, "ouster t u32 ns, stamp at end, IMU in g", "ouster");
 }

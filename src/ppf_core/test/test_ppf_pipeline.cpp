@@ -30,13 +30,14 @@ SimRun Simulate(Config config, double duration) {
   lidar.range_noise = 0.01;
   std::mt19937 rng(7);
   std::normal_distribution<double> n(0.0, 1.0);
-  config.T_imu_lidar = test::MakePose(Eigen::Vector3d(0.1, -0.05, 0.2), 0, 0, 0.2);
+  config.extrinsic.T_imu_lidar = test::MakePose(Eigen::Vector3d(0.1, -0.05, 0.2), 0, 0, 0.2);
   config.num_threads = 1;
   LioPpf lio(config);
   SimRun out;
   double t_imu = 0.0;
   for (double t_scan = 0.0; t_scan + lidar.period <= duration; t_scan += lidar.period) {
-    const auto pts = test::SimulateScan(scene, pose, config.T_imu_lidar, t_scan, lidar, &rng);
+    const auto pts =
+        test::SimulateScan(scene, pose, config.extrinsic.T_imu_lidar, t_scan, lidar, &rng);
     while (t_imu <= t_scan + lidar.period + 1e-9) {
       ImuSample s = test::ImuFromPose(pose, t_imu);
       s.angular_velocity +=

@@ -77,7 +77,7 @@ void WriteCalibration(const SimConfig& cfg, const ScanOptions& so) {
       << e[1] << ", " << e[0] << "]\n";
   if (cfg.disturbances.gyro_range > 0.0) {
     // The IMU's datasheet full scale, as a user would configure it.
-    cal << "imu:\n  gyro_range: " << cfg.disturbances.gyro_range << "\n";
+    cal << "imu:\n  noise:\n    gyro_range: " << cfg.disturbances.gyro_range << "\n";
   }
 }
 

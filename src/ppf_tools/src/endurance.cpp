@@ -241,7 +241,7 @@ EnduranceReport RunEndurance(const EnduranceOptions& options, const Config& conf
   rep.sim_wall_s = Since(t_start);
 
   Config config = config_in;
-  config.T_imu_lidar = drive.scan_options.T_imu_lidar;
+  config.extrinsic.T_imu_lidar = drive.scan_options.T_imu_lidar;
   LioPpf lio(config);
   rep.map_radius = config.map.radius;
   rep.map_capacity_points = lio.map_stats().capacity_points;

@@ -56,7 +56,7 @@ void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
   // How far the LiDAR moved the prediction, and whether it overruled it (Config::consistency).
   os << std::setprecision(4) << ',' << r.correction_rot_deg << ',' << r.correction_pos_m << ','
      << (r.overruled ? 1 : 0) << ',' << r.disagreement_rot_deg << ',' << r.disagreement_pos_m;
-  // How long a gyro axis read at saturation in this scan's prediction (imu.gyro_range).
+  // How long a gyro axis read at saturation in this scan's prediction (imu.noise.gyro_range).
   os << ',' << r.gyro_saturated_s;
   os << '\n';
 }

@@ -169,9 +169,9 @@ INSTANTIATE_TEST_SUITE_P(
              Case::kRelocated, 0.05, 0.15, 1.2},
         // A gyro saturating at 2 rad/s on a hand-held walk (its shake peaks at 2.6 rad/s): each
         // saturated reading's missing turn is measured by the scan alone and its de-skew redone
-        // (imu.gyro_range). Position, APE (1.1x) and heading 1 s after within the full bounds; a
-        // scan whose smeared points hide the missing turn keeps degrees of heading and up to
-        // 0.2 deg of tilt until the next (not yet the full bounds).
+        // (imu.noise.gyro_range). Position, APE (1.1x) and heading 1 s after within the full
+        // bounds; a scan whose smeared points hide the missing turn keeps degrees of heading and
+        // up to 0.2 deg of tilt until the next (not yet the full bounds).
         Case{"handheld_gyro_range_knn", kHandheld, "vlp16", 20, "--gyro-range 2", 5, kKnn,
              Case::kRelocated, 0.05, 0.3, 1.2},
         Case{"handheld_gyro_range_ppf", kHandheld, "vlp16", 20, "--gyro-range 2", 5, kPpf,

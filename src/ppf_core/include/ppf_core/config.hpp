@@ -31,10 +31,10 @@ enum class TimeReference { kAuto, kRelative, kAbsolute };
 enum class NoTimePolicy { kNoDeskew, kAzimuth };
 
 struct TimeFieldOptions {
-  std::string field_name;        // "" = detect among t, time, timestamp, time_stamp, offset_time
+  std::string field;             // "" = detect among t, time, timestamp, time_stamp, offset_time
   double unit_scale_s = 0.0;     // seconds per raw unit; 0 = by type (uint -> 1e-9, float -> 1)
   TimeReference reference = TimeReference::kAuto;
-  StampPosition stamp_position = StampPosition::kAuto;
+  StampPosition stamp = StampPosition::kAuto;  // which end of the sweep the header stamp marks
   NoTimePolicy no_time_policy = NoTimePolicy::kAzimuth;
   // Spin period: the azimuth estimate's, and twice it bounds the point times a sweep may have
   // (time_field.hpp: later ones are dropped and counted).
@@ -244,8 +244,8 @@ struct PreprocessConfig {
 enum class ImuMode { kAuto, kLio, kNone };
 
 // --- the YAML section imu: ----------------------------------------------------------------------
-// The YAML keys imu.init_* (and imu.moving_start*, imu.acc_scale, imu.gravity) fill imu.init,
-// imu.<x>_noise fills imu.noise.<x>.
+// Its groups init: and noise: are the members init and noise (YAML imu.init.duration is
+// imu.init.duration_s here).
 struct ImuOptions {
   ImuMode mode = ImuMode::kAuto;
   // Seconds of scans without any IMU sample after which kAuto decides "no IMU". Scans wait (are
@@ -287,16 +287,20 @@ struct ImuOptions {
   double gap_gyro_std = 0.05;  // rad/s, unmeasured turn rate assumed during a bridged gap
 };
 
+// --- the YAML section extrinsic: -----------------------------------------------------------------
+struct ExtrinsicConfig {
+  // LiDAR -> IMU: p_imu = T_imu_lidar * p_lidar.
+  Eigen::Isometry3d T_imu_lidar = Eigen::Isometry3d::Identity();
+};
+
 // --- the core ------------------------------------------------------------------------------------
 enum class Mode { kKnn, kPpf };
 
 struct Config {
   Mode mode = Mode::kKnn;
 
-  // LiDAR -> IMU extrinsic: p_imu = T_imu_lidar * p_lidar.
-  Eigen::Isometry3d T_imu_lidar = Eigen::Isometry3d::Identity();
-
   // One member per YAML section, named as the section (config/reference.yaml).
+  ExtrinsicConfig extrinsic;    // T_imu_lidar, the LiDAR's mount on the IMU
   PreprocessConfig preprocess;  // range and stride filter, scan voxel grid
   TimeFieldOptions time;        // per-point time conventions (time_field.hpp)
   VoxelMapOptions map;          // kNN map (voxel_map.hpp): 0.5 m voxels, LRU bound, map.radius

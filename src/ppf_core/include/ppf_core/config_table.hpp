@@ -4,7 +4,9 @@
 //   - every key is optional; a missing key or "key:" without a value keeps the field's value;
 //   - an unknown key is a warning naming it (a typo must not pass silently, nor stop a robot);
 //   - a wrong type, a value outside an enum, a section that is not a map, or a key that is itself
-//     a list or a map is an error naming the key; the load then changes nothing.
+//     a list or a map is an error naming the key; the load then changes nothing;
+//   - a key's former spelling (AddAlias) is still read, with a warning naming the current one, so
+//     that files written before a rename keep loading to the same values.
 // Keys are applied in the order they were added to the table, not in the order of the file: a key
 // that selects defaults for its section (ppf.beams) is added first and the others override it.
 //
@@ -54,6 +56,10 @@ class ConfigTable {
   void AddCustom(const std::string& key, Setter set, Shower show);
   // Appended to the warning about an unknown key inside `section` (e.g. how keys there are named).
   void AddHint(const std::string& section, const std::string& hint);
+  // `old_key` is a former spelling of the table's key `key`: its value is read into the same
+  // field, at `key`'s place in the table order, with a warning naming `key`. When a file gives
+  // both, `key` wins and the old one is reported as ignored. Keys() does not list aliases.
+  void AddAlias(const std::string& old_key, const std::string& key);
 
   // Applies a parsed document (a map, or null for "all defaults") to the bound fields. Throws
   // ConfigError; appends a warning per unknown key. The caller keeps its struct's previous value
@@ -81,10 +87,12 @@ class ConfigTable {
   void CheckKeys(const YAML::Node& map, const std::string& prefix,
                  std::vector<std::string>* warnings) const;
   bool IsKey(const std::string& path) const;
+  bool IsAlias(const std::string& path) const;
   bool IsSection(const std::string& path) const;
 
   std::vector<Entry> entries_;
   std::vector<std::pair<std::string, std::string>> hints_;
+  std::vector<std::pair<std::string, std::string>> aliases_;  // (old key, current key)
 };
 
 // Loads YAML text with `table` (bound to *work, a copy of the caller's config): the report

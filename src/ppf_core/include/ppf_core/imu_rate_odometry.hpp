@@ -33,7 +33,7 @@ class ImuRateOdometry {
  public:
   struct Options {
     ImuNoise noise;  // the filter's process noise (Config imu.noise), so the covariance grows alike
-    // Multiplies raw accelerations (imu.acc_scale); 0 = detect as the initializer does
+    // Multiplies raw accelerations (imu.init.acc_scale); 0 = detect as the initializer does
     // (a mean accelerometer norm near 1 means the driver reports in g).
     double acc_scale = 0.0;
     // Seconds of samples kept for re-propagation: longer than a scan takes from its end to its

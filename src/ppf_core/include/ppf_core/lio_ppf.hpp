@@ -151,8 +151,8 @@ struct ScanResult {
   double imu_gap_longest_s = 0.0;
   size_t imu_conflicts = 0;
   size_t imu_conflicts_unresolved = 0;
-  // > 0: some gyro axis read at saturation (imu.gyro_range) this long while predicting this scan;
-  // the turn beyond the reading was left to the LiDAR (its rotation covariance widened).
+  // > 0: some gyro axis read at saturation (imu.noise.gyro_range) this long while predicting this
+  // scan; the turn beyond the reading was left to the LiDAR (its rotation covariance widened).
   double gyro_saturated_s = 0.0;
 
   // --- Counts: points through the stages, residual rows, map ------------------------------------

@@ -310,7 +310,7 @@ void ApplyNoTimePolicy(const TimeFieldOptions& options, double stamp_s, DecodedS
     return;
   }
   const double period = options.scan_period_s > 0.0 ? options.scan_period_s : 0.1;
-  const double start = options.stamp_position == StampPosition::kEnd ? stamp_s - period : stamp_s;
+  const double start = options.stamp == StampPosition::kEnd ? stamp_s - period : stamp_s;
   const double a0 = std::atan2(out->points.front().p.y(), out->points.front().p.x());
   for (TimedPoint& tp : out->points) {
     const double a = std::atan2(tp.p.y(), tp.p.x());
@@ -403,8 +403,8 @@ void TimeFieldDecoder::Detect(const CloudView& cloud, const FieldDesc* time_fiel
     if (log_) {
       log_(LogLevel::kWarn,
            std::string("no per-point time field (looked for ") +
-               (options_.field_name.empty() ? "t/time/timestamp/time_stamp/offset_time"
-                                            : options_.field_name) +
+               (options_.field.empty() ? "t/time/timestamp/time_stamp/offset_time"
+                                       : options_.field) +
                "): " +
                (options_.no_time_policy == NoTimePolicy::kAzimuth
                     ? "estimating point times from azimuth (spinning LiDAR assumed)"
@@ -448,7 +448,7 @@ void TimeFieldDecoder::Detect(const CloudView& cloud, const FieldDesc* time_fiel
                        std::abs(median - cloud.stamp_s) < 1.0;
       break;
   }
-  switch (options_.stamp_position) {
+  switch (options_.stamp) {
     case StampPosition::kStart:
       info_.stamp_at_end = false;
       break;
@@ -479,7 +479,7 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
   if (fields.intensity && !FieldFits(*fields.intensity, cloud.point_step)) {
     fields.intensity = nullptr;
   }
-  const FieldDesc* ft = FindTimeField(cloud, options_.field_name);
+  const FieldDesc* ft = FindTimeField(cloud, options_.field);
   if (ft && !FieldFits(*ft, cloud.point_step)) {
     if (error) *error = "time field '" + ft->name + "' lies outside point_step";
     return false;

@@ -112,7 +112,7 @@ TEST(TimeField, StampAtEndWithNonNegativeOffsetsNeedsConfig) {
   TimeEncoding enc = Enc("time", FieldType::kFloat32, 1.0, false, true, false);
   const test::CloudBuffer cloud = test::MakeCloud(pts, 50.0, t_end, enc);
   TimeFieldOptions opt;
-  opt.stamp_position = StampPosition::kEnd;
+  opt.stamp = StampPosition::kEnd;
   TimeFieldDecoder decoder(opt);
   DecodedScan scan;
   std::string error;
@@ -127,7 +127,7 @@ TEST(TimeField, ConfigOverridesNameAndUnit) {
   TimeEncoding enc = Enc("t_us", FieldType::kUint32, 1e-6, false, false, false);
   test::CloudBuffer cloud = test::MakeCloud(pts, 10.0, pts.back().t, enc);
   TimeFieldOptions opt;
-  opt.field_name = "t_us";
+  opt.field = "t_us";
   opt.unit_scale_s = 1e-6;
   TimeFieldDecoder decoder(opt);
   DecodedScan scan;
@@ -285,7 +285,7 @@ TEST(TimeField, ImplausiblePointTimesDroppedAndCounted) {
     pts[12].t += u32 ? 0.5 : -100.0;
     // A first clean scan fixes the convention, as a driver's first scan would.
     TimeFieldOptions opt;
-    opt.stamp_position = c.stamp;
+    opt.stamp = c.stamp;
     TimeFieldDecoder decoder(opt);
     DecodedScan scan;
     std::string error;

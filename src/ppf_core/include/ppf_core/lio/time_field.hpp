@@ -10,7 +10,7 @@
 //                1 s of a header stamp that is itself > 10 s are absolute; otherwise relative.
 //   header     : stamp at scan start (default) or at scan end. Relative times <= 0 (ending at 0)
 //                mean "relative to the end"; non-negative relative times cannot tell, so
-//                TimeFieldOptions::stamp_position decides (kAuto treats them as start).
+//                TimeFieldOptions::stamp decides (kAuto treats them as start).
 // Detection runs on the first scan that has points, is logged once, and is then fixed (a driver
 // does not change conventions mid-run); every field can be forced in the options instead.
 //
@@ -99,7 +99,7 @@ std::string ValidateCloudLayout(const CloudView& cloud);
 // packet's arrival may be a few milliseconds late).
 constexpr double kEarlyPointTimeS = 0.01;
 
-// Field names tried, in order, when TimeFieldOptions::field_name is empty.
+// Field names tried, in order, when TimeFieldOptions::field is empty.
 const std::vector<std::string>& KnownTimeFieldNames();
 
 }  // namespace ppf

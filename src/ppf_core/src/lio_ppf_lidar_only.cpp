@@ -261,7 +261,7 @@ void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan,
   if (!(scan.has_time_field || scan.times_estimated)) return;  // nothing to observe it by
   if (pts.size() != frame.points_lidar.size() || pts.empty()) return;
   constexpr int kSteps = 8;
-  const Eigen::Isometry3d& T_il = config.T_imu_lidar;
+  const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
   // The filter's speed before the gap, along the re-localized heading.
   const Eigen::Vector3d v_body = motion.pose().linear().transpose() * motion.velocity_world();
   ImuKnot knot;

@@ -274,16 +274,11 @@ void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan,
   trace.knots.push_back(knot);
   DeskewToEnd(pts, trace, t_end, T_il, &frame.points_lidar, config.num_threads);
 
-  ScanFrame sample = SampleFrame(frame, config.lidar_only.coarse_points);
-  // The sample's points are every stride-th of the frame (SampleFrame): their times likewise.
-  const int max_points = config.lidar_only.coarse_points;
-  const size_t stride =
-      max_points > 0 ? std::max<size_t>(1, pts.size() / static_cast<size_t>(max_points)) : 1;
+  std::vector<size_t> kept;
+  ScanFrame sample = SampleFrame(frame, config.lidar_only.coarse_points, &kept);
   std::vector<float> dt;
-  dt.reserve(sample.points_lidar.size());
-  for (size_t i = 0; i < pts.size() && dt.size() < sample.points_lidar.size(); i += stride) {
-    dt.push_back(static_cast<float>(pts[i].t - t_end));
-  }
+  dt.reserve(kept.size());
+  for (size_t i : kept) dt.push_back(static_cast<float>(pts[i].t - t_end));
   // The vertical speed stays the filter's: a sweep's vertical smear is what a pitch of the ground
   // also makes, and a vehicle's or a walker's vertical speed changes little over a gap.
   const Eigen::Vector3d up = state.gravity_world.norm() > 1.0

@@ -13,7 +13,7 @@
 
 namespace ppf {
 
-ScanFrame SampleFrame(const ScanFrame& frame, int max_points) {
+ScanFrame SampleFrame(const ScanFrame& frame, int max_points, std::vector<size_t>* kept) {
   ScanFrame s;
   s.stamp_s = frame.stamp_s;
   s.T_world_lidar_predicted = frame.T_world_lidar_predicted;
@@ -24,7 +24,11 @@ ScanFrame SampleFrame(const ScanFrame& frame, int max_points) {
   const size_t stride =
       max_points > 0 ? std::max<size_t>(1, n / static_cast<size_t>(max_points)) : 1;
   s.points_lidar.reserve(n / stride + 1);
-  for (size_t i = 0; i < n; i += stride) s.points_lidar.push_back(frame.points_lidar[i]);
+  if (kept != nullptr) kept->clear();
+  for (size_t i = 0; i < n; i += stride) {
+    s.points_lidar.push_back(frame.points_lidar[i]);
+    if (kept != nullptr) kept->push_back(i);
+  }
   s.labels.assign(s.points_lidar.size(), PointLabel::kScattered);
   return s;
 }

@@ -60,8 +60,9 @@ struct FitScore {
   double fit = 0.0;
 };
 // Every n-th point of the frame, at most max_points of them (all if max_points <= 0), all
-// labelled kScattered; map and extrinsic as the frame's.
-ScanFrame SampleFrame(const ScanFrame& frame, int max_points);
+// labelled kScattered; map and extrinsic as the frame's. `kept` (if non-null) receives the frame
+// index of each sampled point, for what the frame carries beside its points (their times).
+ScanFrame SampleFrame(const ScanFrame& frame, int max_points, std::vector<size_t>* kept = nullptr);
 
 FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
                   const LidarOnlyOptions& options, const KnnOptions& knn);

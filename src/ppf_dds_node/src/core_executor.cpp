@@ -101,27 +101,41 @@ void CoreExecutor::FlushLogs() {
 
 void CoreExecutor::Run() {
   uint64_t seen = 0;
-  std::deque<std::pair<double, ImuSample>> imus;
-  auto feed_queued_imu = [&] {
-    imus.clear();
+  std::deque<std::pair<double, ImuItem>> imus;  // taken from the queue, not yet fed
+  // Feeds the IMU samples queued up to `until`. The core sees both streams in the order they
+  // arrived, however long it worked on the scans before: it judges an IMU clock offset by the
+  // newest sample that arrived before a scan (LioPpf, docs/reliability.md), and a backlog fed
+  // all at once would make that sample newer than the scan's arrival. Returns whether any was.
+  auto feed_imu_until = [&](Clock::time_point until) {
     imu_queue_.PopAll(&imus);
-    for (const auto& [stamp, sample] : imus) FeedImu(sample);
+    bool fed = false;
+    while (!imus.empty() && imus.front().second.queued <= until) {
+      FeedImu(imus.front().second.sample);
+      imus.pop_front();
+      fed = true;
+    }
+    return fed;
   };
   while (true) {
     const bool draining = drain_requested_.load();
     if (!draining) scan_queue_.WaitForChange(&seen, std::chrono::milliseconds(50));
-    // IMU first: a scan can only be processed once IMU covers its end.
-    feed_queued_imu();
-    if (!imus.empty() && !pending_.empty()) RunCore(false);
-    while (auto scan = scan_queue_.PopFront()) {
+    while (true) {
+      const Clock::time_point looked = Clock::now();
+      auto scan = scan_queue_.PopFront();
+      if (!scan) {
+        // The IMU that arrived after the last scan: it may cover the scans still pending. What
+        // arrives from now on waits for the scans queued with it.
+        if (feed_imu_until(looked) && !pending_.empty()) RunCore(false);
+        break;
+      }
+      // The IMU that arrived before the scan first: a scan is processed once IMU covers its end.
+      feed_imu_until(scan->second.queued);
       if (AcceptScanStamp(scan->first)) {
         AddScan(std::move(scan->second));
         RunCore(false);
       }
-      // IMU that arrived while the core worked: feed it before the next scan.
-      feed_queued_imu();
     }
-    if (draining && scan_queue_.Size() == 0 && imu_queue_.Size() == 0) {
+    if (draining && scan_queue_.Size() == 0 && imu_queue_.Size() == 0 && imus.empty()) {
       DropImuCandidates();                   // the stream ended before confirming them
       if (!pending_.empty()) RunCore(true);  // remaining scans, IMU extrapolated
       stats_.SetCoreInputTotals(core_->input_stats());  // IMU fed after the last Process
@@ -155,7 +169,8 @@ void CoreExecutor::FeedImu(const ImuSample& s) {
     confirmed.swap(imu_candidates_);
     const double first = confirmed.front().stamp_s;
     if (back) {
-      // Scans of the old timeline still queued (IMU is fed before scans) are finished first.
+      // Scans of the old timeline still queued (they arrived with the samples confirming the jump)
+      // are finished first.
       while (auto old =
                  scan_queue_.PopFrontIf([&](double stamp) { return stamp > first + kJumpS; })) {
         if (AcceptScanStamp(old->first)) AddScan(std::move(old->second));

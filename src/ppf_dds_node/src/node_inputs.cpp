@@ -405,7 +405,7 @@ void NodeInputs::OnImu(fdds::DataReader* reader) {
                                                RosTopicToDds(config_.imu_topic) + ": " + error);
       continue;
     }
-    auto pushed = imu_queue_.Push(imu->stamp_s, *imu);
+    auto pushed = imu_queue_.Push(imu->stamp_s, ImuItem{*imu, Clock::now()});
     if (pushed.out_of_order) stats_->Add(&NodeSummary::imu_out_of_order);
     if (pushed.time_jump) {
       stats_->Add(&NodeSummary::time_jumps);
@@ -417,7 +417,7 @@ void NodeInputs::OnImu(fdds::DataReader* reader) {
       const uint64_t total = stats_->Add(&NodeSummary::imu_overflow);
       // Loud on purpose: losing IMU silently would corrupt the state estimate.
       Log(Level::kError, "IMU queue full (" + std::to_string(imu_queue_.capacity()) +
-                             "): dropped IMU sample at " + std::to_string(pushed.evicted->stamp_s) +
+                             "): dropped IMU sample at " + std::to_string(pushed.evicted->sample.stamp_s) +
                              "; the core is stalled (total IMU dropped: " + std::to_string(total) +
                              ")");
     }

@@ -38,8 +38,15 @@ struct ScanItem {
   int64_t core_busy_ns_at_queue = 0;               // NodeStats::core_busy_ns() when queued
 };
 
+// An IMU sample with the time it was queued: the executor hands both streams to the core in the
+// order they arrived (CoreExecutor::Run), whatever backlog the core has built meanwhile.
+struct ImuItem {
+  ImuSample sample;
+  std::chrono::steady_clock::time_point queued;
+};
+
 using ScanQueue = TimeOrderedQueue<ScanItem>;
-using ImuQueue = TimeOrderedQueue<ImuSample>;
+using ImuQueue = TimeOrderedQueue<ImuItem>;
 
 class NodeInputs {
  public:

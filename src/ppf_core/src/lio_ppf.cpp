@@ -57,6 +57,7 @@ void LioPpf::Impl::ResetFilter(const std::string& reason) {
   recent_fits.clear();
   lio_fits.clear();
   lio_steps_pos.clear();
+  lio_steps_rot.clear();
   map.clear();
   imu.clear();
   imu_conflict = ImuConflict();

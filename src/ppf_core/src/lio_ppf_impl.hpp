@@ -162,6 +162,8 @@ struct LioPpf::Impl {
   void RedeskewLidarOnly(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end);
   void EstimateScanVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                             double t_end);
+  void CorrectGapTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end,
+                      ScanResult* r);
   void CorrectSaturatedTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                             double t_end, ScanResult* r);
 
@@ -185,6 +187,12 @@ struct LioPpf::Impl {
   GyroSaturation saturation;
   NavState saturation_start;
   std::vector<ImuSample> saturation_samples;
+  // The part of a bridged gap the last propagation crossed (gap_to_s > gap_from_s), and what it
+  // started from (CorrectGapTurn).
+  double gap_from_s = 0.0;
+  double gap_to_s = 0.0;
+  NavState gap_start;
+  std::vector<ImuSample> gap_samples;
   ScanFrame frame;
   VoxelGridDownsampler downsampler;  // keeps its hash table between scans
   bool initialized = false;
@@ -211,6 +219,7 @@ struct LioPpf::Impl {
   std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
   std::deque<double> lio_fits;     // LIO: posterior fits of the last scans (consistency check)
   std::deque<double> lio_steps_pos;  // ... and the scan-alone steps' translation (m)
+  std::deque<double> lio_steps_rot;  // ... and rotation (rad)
   bool contradicted = false;       // this scan's pose fits the map poorly and no guess did better
   size_t ignored_imu = 0;
   // IMU loss (docs/behaviour.md, "IMU loss"): LIO running, but scans are registered LiDAR-only

@@ -172,6 +172,7 @@ void LioPpf::Impl::ClearMovingInit() {
   recent_fits.clear();
   lio_fits.clear();
   lio_steps_pos.clear();
+  lio_steps_rot.clear();
   if (tracker) tracker->Reset();
   knn->Reset();
   scans_since_prune = 0;

@@ -52,6 +52,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   const double t_end = Propagate(scan, lidar, &trace, &r);
   Deskew(scan, pts, trace, t_end);
   if (!lidar) CorrectSaturatedTurn(scan, pts, t_end, &r);
+  if (!lidar) CorrectGapTurn(scan, pts, t_end, &r);
   r.timings.deskew = MsSince(t0);
   last_scan_end = t_end;
   r.stamp_s = t_end;
@@ -155,6 +156,14 @@ double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* t
     std::vector<ImuSample> samples(imu.begin(), imu.end());
     // Without a full scale no reading is saturated: nothing to keep for CorrectSaturatedTurn.
     if (config.imu.noise.gyro_range > 0.0) saturation_start = state;
+    gap_from_s = gap_to_s = 0.0;
+    if (!bridged_gaps.empty() && bridged_gaps.front().begin_s < t_end) {
+      const BridgedGap& gap = bridged_gaps.front();
+      gap_from_s = std::max(state.stamp_s, gap.begin_s);
+      gap_to_s = std::min(t_end, gap.begin_s + gap.length_s);
+      gap_start = state;
+      gap_samples = samples;
+    }
     PropagateImu(samples, t_end, acc_scale, config.imu.noise, &state, trace, &saturation);
     r->gyro_saturated_s = saturation.seconds;
     if (saturation.seconds > 0.0) saturation_samples = samples;
@@ -279,6 +288,80 @@ void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan,
   if (!excess.isZero()) {
     os << ": the scan showed up to " << excess.maxCoeff() << " rad/s beyond the reading";
   }
+  Append(&r->reason, os.str());
+}
+
+// A scan propagated across part of a bridged gap: the integration assumed the turn rate went
+// linearly from the sample before the gap to the one after, which misses whatever the body did
+// in between (a pitch oscillating on the suspension), and the scan was de-skewed with it. As for
+// a saturated gyro, the scan alone (a few Gauss-Newton steps on the map, wide gate, no prior)
+// measures the turn at the scan end; read as a constant rate beyond the interpolated one over
+// the part of the gap this scan crossed (the previous scan's update fixed the pose before it),
+// it goes into the samples over that part, and propagation and de-skew run again. The
+// covariance keeps the gap's widening: the update still decides. Not with a skeleton tracker
+// (kPpf): its kNN map holds the scattered points only, against which the whole scan's turn is
+// no better known than the gap left it (docs/decisions.md, "IMU gap bridging").
+void LioPpf::Impl::CorrectGapTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
+                                  double t_end, ScanResult* r) {
+  if (!(gap_to_s > gap_from_s) || !map_initialized || saturation.seconds > 0.0 || tracker) return;
+  constexpr int kSteps = 4;
+  constexpr double kMinTurnRad = 0.05 * M_PI / 180.0;
+  const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
+  frame.map = &map;
+  frame.T_imu_lidar = T_il;
+  const ScanFrame sample = SampleFrame(frame, config.consistency.fit_points);
+  Eigen::Isometry3d T = state.T_world_imu() * T_il;
+  const Eigen::Matrix3d R_predicted = T.linear();
+  for (int k = 0; k < kSteps; ++k) {
+    const PoseProbe p = ProbePose(sample, T, config.lidar_only, config.knn, config.iekf,
+                                  config.lidar_only.coarse_max_residual);
+    if (p.step_rot.norm() < 1e-4 && p.step_pos.norm() < 1e-3) break;
+    T.linear() = NormalizeRotation(SO3Exp(p.step_rot) * T.linear());
+    T.translation() += p.step_pos;
+  }
+  const Eigen::Vector3d turn = SO3Log(T.linear() * R_predicted.transpose());  // world frame
+  if (turn.norm() < kMinTurnRad) return;
+  // The scan alone is not exact either: its turn is taken in the proportion the two
+  // uncertainties give, the gap's unmeasured rate over the crossed part against the scan-alone
+  // steps of the recent scans (the consistency check's, per axis). A scan that crossed a few
+  // milliseconds of the gap takes little of it.
+  const double crossed = gap_to_s - gap_from_s;
+  const double var_gap = std::pow(config.imu.gap_gyro_std * crossed, 2);
+  double var_scan = 0.0;
+  for (double s : lio_steps_rot) var_scan += s * s / 3.0;
+  if (!lio_steps_rot.empty()) var_scan /= static_cast<double>(lio_steps_rot.size());
+  const double share = var_gap / (var_gap + var_scan);
+  // The body frame's rate that turns the prediction by that share over the crossed part.
+  const Eigen::Vector3d rate = state.R_world_imu.transpose() * turn * (share / crossed);
+  // The samples with the rate added over [gap_from_s, gap_to_s]: copies at both ends carry it,
+  // so that the interpolation outside that part stays the samples' own.
+  auto shifted = [&](ImuSample s) {
+    s.angular_velocity += rate;
+    return s;
+  };
+  std::vector<ImuSample> samples;
+  samples.reserve(gap_samples.size() + 2);
+  for (const ImuSample& s : gap_samples) {
+    if (s.stamp_s <= gap_from_s) samples.push_back(s);
+  }
+  samples.push_back(shifted(InterpolateImu(gap_samples, gap_from_s)));
+  for (const ImuSample& s : gap_samples) {
+    if (s.stamp_s > gap_from_s && s.stamp_s < gap_to_s) samples.push_back(shifted(s));
+  }
+  samples.push_back(shifted(InterpolateImu(gap_samples, gap_to_s)));
+  for (const ImuSample& s : gap_samples) {
+    if (s.stamp_s >= gap_to_s) samples.push_back(s);
+  }
+  const StateCov P = state.P;
+  state = gap_start;
+  PoseTrace trace;
+  GyroSaturation unused;
+  PropagateImu(samples, t_end, acc_scale, config.imu.noise, &state, &trace, &unused);
+  state.P = P;
+  Deskew(scan, pts, trace, t_end);
+  std::ostringstream os;
+  os << "the scan alone turns the prediction across the gap by " << turn.norm() * 180.0 / M_PI
+     << " deg: de-skewed again with " << share * 100.0 << " % of it";
   Append(&r->reason, os.str());
 }
 
@@ -487,7 +570,8 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   auto remember = [this](double f, const PoseProbe& p) {
     lio_fits.push_back(f);
     lio_steps_pos.push_back(p.step_pos.norm());
-    for (std::deque<double>* d : {&lio_fits, &lio_steps_pos}) {
+    lio_steps_rot.push_back(p.step_rot.norm());
+    for (std::deque<double>* d : {&lio_fits, &lio_steps_pos, &lio_steps_rot}) {
       if (d->size() > 10) d->pop_front();
     }
   };

@@ -132,6 +132,10 @@ void CoreExecutor::Run() {
       feed_imu_until(scan->second.queued);
       if (AcceptScanStamp(scan->first)) {
         AddScan(std::move(scan->second));
+        // The IMU that arrived after it, up to the next scan, may cover it: no wait for the next
+        // wake-up when the core is behind.
+        const auto next = scan_queue_.PeekFront();
+        feed_imu_until(next ? next->second.queued : Clock::now());
         RunCore(false);
       }
     }

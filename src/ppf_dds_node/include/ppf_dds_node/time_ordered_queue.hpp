@@ -80,6 +80,13 @@ class TimeOrderedQueue {
     return item;
   }
 
+  // A copy of the front item, left queued.
+  std::optional<std::pair<double, T>> PeekFront() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (items_.empty()) return std::nullopt;
+    return items_.front();
+  }
+
   std::optional<std::pair<double, T>> PopFront() {
     std::lock_guard<std::mutex> lock(mutex_);
     if (items_.empty()) return std::nullopt;

@@ -162,6 +162,7 @@ struct LioPpf::Impl {
   void RedeskewLidarOnly(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end);
   void EstimateScanVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                             double t_end);
+  Eigen::Vector3d ScanAloneTurn(int steps);
   void CorrectGapTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end,
                       ScanResult* r);
   void CorrectSaturatedTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,

@@ -211,6 +211,25 @@ void LioPpf::Impl::Deskew(const DecodedScan& scan, const std::vector<TimedPoint>
   }
 }
 
+// The turn (world frame, rad) that a few Gauss-Newton steps of the scan alone on the map (wide
+// gate, no prior) make of the predicted pose: what the scan says the prediction missed.
+Eigen::Vector3d LioPpf::Impl::ScanAloneTurn(int steps) {
+  const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
+  frame.map = &map;
+  frame.T_imu_lidar = T_il;
+  const ScanFrame sample = SampleFrame(frame, config.consistency.fit_points);
+  Eigen::Isometry3d T = state.T_world_imu() * T_il;
+  const Eigen::Matrix3d R_predicted = T.linear();
+  for (int k = 0; k < steps; ++k) {
+    const PoseProbe p = ProbePose(sample, T, config.lidar_only, config.knn, config.iekf,
+                                  config.lidar_only.coarse_max_residual);
+    if (p.step_rot.norm() < 1e-4 && p.step_pos.norm() < 1e-3) break;
+    T.linear() = NormalizeRotation(SO3Exp(p.step_rot) * T.linear());
+    T.translation() += p.step_pos;
+  }
+  return SO3Log(T.linear() * R_predicted.transpose());
+}
+
 // A gyro axis read at saturation while predicting this scan: the turn beyond the reading is
 // unknown, and the scan was de-skewed without it, smeared by as much as it turned. The scan alone
 // (a few Gauss-Newton steps on the map, wide gate, no prior) measures the missing turn at the
@@ -224,25 +243,10 @@ void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan,
   constexpr int kPasses = 2;
   constexpr int kSteps = 4;
   constexpr double kMinTurnRad = 0.2 * M_PI / 180.0;
-  const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
-  const double wide = config.lidar_only.coarse_max_residual;
   Eigen::Matrix<double, 6, 1> excess = Eigen::Matrix<double, 6, 1>::Zero();
   double first_turn_deg = 0.0;
   for (int pass = 0; pass < kPasses; ++pass) {
-    frame.map = &map;
-    frame.T_imu_lidar = T_il;
-    const ScanFrame sample = SampleFrame(frame, config.consistency.fit_points);
-    Eigen::Isometry3d T = state.T_world_imu() * T_il;
-    const Eigen::Matrix3d R_predicted = T.linear();
-    for (int k = 0; k < kSteps; ++k) {
-      const PoseProbe p =
-          ProbePose(sample, T, config.lidar_only, config.knn, config.iekf, wide);
-      if (p.step_rot.norm() < 1e-4 && p.step_pos.norm() < 1e-3) break;
-      const Eigen::Matrix3d dR = SO3Exp(p.step_rot);
-      T.linear() = NormalizeRotation(dR * T.linear());
-      T.translation() += p.step_pos;
-    }
-    const Eigen::Vector3d turn = SO3Log(T.linear() * R_predicted.transpose());
+    const Eigen::Vector3d turn = ScanAloneTurn(kSteps);
     if (pass == 0) first_turn_deg = turn.norm() * 180.0 / M_PI;
     if (turn.norm() < kMinTurnRad) break;
     // Non-negative least squares over the saturated columns (one or two in practice): solve,
@@ -306,20 +310,7 @@ void LioPpf::Impl::CorrectGapTurn(const DecodedScan& scan, const std::vector<Tim
   if (!(gap_to_s > gap_from_s) || !map_initialized || saturation.seconds > 0.0 || tracker) return;
   constexpr int kSteps = 4;
   constexpr double kMinTurnRad = 0.05 * M_PI / 180.0;
-  const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
-  frame.map = &map;
-  frame.T_imu_lidar = T_il;
-  const ScanFrame sample = SampleFrame(frame, config.consistency.fit_points);
-  Eigen::Isometry3d T = state.T_world_imu() * T_il;
-  const Eigen::Matrix3d R_predicted = T.linear();
-  for (int k = 0; k < kSteps; ++k) {
-    const PoseProbe p = ProbePose(sample, T, config.lidar_only, config.knn, config.iekf,
-                                  config.lidar_only.coarse_max_residual);
-    if (p.step_rot.norm() < 1e-4 && p.step_pos.norm() < 1e-3) break;
-    T.linear() = NormalizeRotation(SO3Exp(p.step_rot) * T.linear());
-    T.translation() += p.step_pos;
-  }
-  const Eigen::Vector3d turn = SO3Log(T.linear() * R_predicted.transpose());  // world frame
+  const Eigen::Vector3d turn = ScanAloneTurn(kSteps);
   if (turn.norm() < kMinTurnRad) return;
   // The scan alone is not exact either: its turn is taken in the proportion the two
   // uncertainties give, the gap's unmeasured rate over the crossed part against the scan-alone

@@ -416,10 +416,10 @@ void NodeInputs::OnImu(fdds::DataReader* reader) {
     if (pushed.evicted) {
       const uint64_t total = stats_->Add(&NodeSummary::imu_overflow);
       // Loud on purpose: losing IMU silently would corrupt the state estimate.
-      Log(Level::kError, "IMU queue full (" + std::to_string(imu_queue_.capacity()) +
-                             "): dropped IMU sample at " + std::to_string(pushed.evicted->sample.stamp_s) +
-                             "; the core is stalled (total IMU dropped: " + std::to_string(total) +
-                             ")");
+      Log(Level::kError,
+          "IMU queue full (" + std::to_string(imu_queue_.capacity()) + "): dropped IMU sample at " +
+              std::to_string(pushed.evicted->sample.stamp_s) +
+              "; the core is stalled (total IMU dropped: " + std::to_string(total) + ")");
     }
     if (imu_observer_) imu_observer_(*imu, sample.msg.header().stamp(), received);
   }

@@ -123,8 +123,14 @@ struct LioPpf::Impl {
               double t_end);
   void StartMap(bool lidar, double t_end, ScanResult* r);
   void SplitScan(ScanResult* r);
-  IekfReport Register(double t_end, bool lidar, Eigen::Isometry3d* T_world_lidar_out,
-                      ScanResult* r);
+  IekfReport Register(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end,
+                      bool lidar, Eigen::Isometry3d* T_world_lidar_out, ScanResult* r);
+  IekfReport RedeskewGapTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
+                             double t_end, const NavState& predicted, const IekfOptions& iekf,
+                             const std::vector<ResidualProvider*>& providers,
+                             const IekfReport& rep, ScanResult* r);
+  void PrepareFrame(double t_end);
+  void CountLabels(ScanResult* r) const;
   IekfReport OverruleIfInconsistent(const NavState& predicted, const IekfOptions& iekf,
                                     const std::vector<ResidualProvider*>& providers,
                                     const IekfReport& rep, ScanResult* r);
@@ -163,6 +169,8 @@ struct LioPpf::Impl {
   void EstimateScanVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                             double t_end);
   Eigen::Vector3d ScanAloneTurn(int steps);
+  void RepropagateGap(const Eigen::Vector3d& rate_body, const DecodedScan& scan,
+                      const std::vector<TimedPoint>& pts, double t_end);
   void CorrectGapTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end,
                       ScanResult* r);
   void CorrectSaturatedTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,

@@ -60,12 +60,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   // initialization keeps all: it preintegrates from its first scan).
   while (!moving_init && imu.size() > 2 && imu[1].stamp_s <= state.stamp_s) imu.pop_front();
 
-  frame.stamp_s = t_end;
-  frame.labels.assign(frame.points_lidar.size(), PointLabel::kScattered);
-  frame.T_imu_lidar = config.extrinsic.T_imu_lidar;
-  frame.T_world_lidar_predicted = state.T_world_imu() * config.extrinsic.T_imu_lidar;
-  frame.map = &map;
-  frame.residual_max_range = config.iekf.residual_max_range;
+  PrepareFrame(t_end);
 
   if (!map_initialized) {
     StartMap(lidar, t_end, &r);
@@ -83,7 +78,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   }
   SplitScan(&r);
   Eigen::Isometry3d T_world_lidar;
-  const IekfReport rep = Register(t_end, lidar, &T_world_lidar, &r);
+  const IekfReport rep = Register(scan, pts, t_end, lidar, &T_world_lidar, &r);
   SetUpdateStatus(rep, lidar, &r);
   if (lidar) FinishLidarOnly(coarse, t_end, &r);
   if (Relocating()) ReportRelocalization(&r);
@@ -305,25 +300,10 @@ void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan,
 // covariance keeps the gap's widening: the update still decides. Not with a skeleton tracker
 // (kPpf): its kNN map holds the scattered points only, against which the whole scan's turn is
 // no better known than the gap left it (docs/decisions.md, "IMU gap bridging").
-void LioPpf::Impl::CorrectGapTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
-                                  double t_end, ScanResult* r) {
-  if (!(gap_to_s > gap_from_s) || !map_initialized || saturation.seconds > 0.0 || tracker) return;
-  constexpr int kSteps = 4;
-  constexpr double kMinTurnRad = 0.05 * M_PI / 180.0;
-  const Eigen::Vector3d turn = ScanAloneTurn(kSteps);
-  if (turn.norm() < kMinTurnRad) return;
-  // The scan alone is not exact either: its turn is taken in the proportion the two
-  // uncertainties give, the gap's unmeasured rate over the crossed part against the scan-alone
-  // steps of the recent scans (the consistency check's, per axis). A scan that crossed a few
-  // milliseconds of the gap takes little of it.
-  const double crossed = gap_to_s - gap_from_s;
-  const double var_gap = std::pow(config.imu.gap_gyro_std * crossed, 2);
-  double var_scan = 0.0;
-  for (double s : lio_steps_rot) var_scan += s * s / 3.0;
-  if (!lio_steps_rot.empty()) var_scan /= static_cast<double>(lio_steps_rot.size());
-  const double share = var_gap / (var_gap + var_scan);
-  // The body frame's rate that turns the prediction by that share over the crossed part.
-  const Eigen::Vector3d rate = state.R_world_imu.transpose() * turn * (share / crossed);
+// Propagation from the gap's start again, with a body rate added to the samples over the part
+// of the gap this scan crossed, and the de-skew from it; the covariance stays the prediction's.
+void LioPpf::Impl::RepropagateGap(const Eigen::Vector3d& rate, const DecodedScan& scan,
+                                  const std::vector<TimedPoint>& pts, double t_end) {
   // The samples with the rate added over [gap_from_s, gap_to_s]: copies at both ends carry it,
   // so that the interpolation outside that part stays the samples' own.
   auto shifted = [&](ImuSample s) {
@@ -350,6 +330,28 @@ void LioPpf::Impl::CorrectGapTurn(const DecodedScan& scan, const std::vector<Tim
   PropagateImu(samples, t_end, acc_scale, config.imu.noise, &state, &trace, &unused);
   state.P = P;
   Deskew(scan, pts, trace, t_end);
+}
+
+void LioPpf::Impl::CorrectGapTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
+                                  double t_end, ScanResult* r) {
+  if (!(gap_to_s > gap_from_s) || !map_initialized || saturation.seconds > 0.0 || tracker) return;
+  constexpr int kSteps = 4;
+  constexpr double kMinTurnRad = 0.05 * M_PI / 180.0;
+  const Eigen::Vector3d turn = ScanAloneTurn(kSteps);
+  if (turn.norm() < kMinTurnRad) return;
+  // The scan alone is not exact either: its turn is taken in the proportion the two
+  // uncertainties give, the gap's unmeasured rate over the crossed part against the scan-alone
+  // steps of the recent scans (the consistency check's, per axis). A scan that crossed a few
+  // milliseconds of the gap takes little of it.
+  const double crossed = gap_to_s - gap_from_s;
+  const double var_gap = std::pow(config.imu.gap_gyro_std * crossed, 2);
+  double var_scan = 0.0;
+  for (double s : lio_steps_rot) var_scan += s * s / 3.0;
+  if (!lio_steps_rot.empty()) var_scan /= static_cast<double>(lio_steps_rot.size());
+  const double share = var_gap / (var_gap + var_scan);
+  // The body frame's rate that turns the prediction by that share over the crossed part.
+  const Eigen::Vector3d rate = state.R_world_imu.transpose() * turn * (share / crossed);
+  RepropagateGap(rate, scan, pts, t_end);
   std::ostringstream os;
   os << "the scan alone turns the prediction across the gap by " << turn.norm() * 180.0 / M_PI
      << " deg: de-skewed again with " << share * 100.0 << " % of it";
@@ -385,6 +387,21 @@ void LioPpf::Impl::SplitScan(ScanResult* r) {
     frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
     r->timings.ppf = MsSince(t0);
   }
+  CountLabels(r);
+}
+
+// The de-skewed frame made ready for the split and the update, all points scattered so far.
+void LioPpf::Impl::PrepareFrame(double t_end) {
+  frame.stamp_s = t_end;
+  frame.labels.assign(frame.points_lidar.size(), PointLabel::kScattered);
+  frame.T_imu_lidar = config.extrinsic.T_imu_lidar;
+  frame.T_world_lidar_predicted = state.T_world_imu() * config.extrinsic.T_imu_lidar;
+  frame.map = &map;
+  frame.residual_max_range = config.iekf.residual_max_range;
+}
+
+void LioPpf::Impl::CountLabels(ScanResult* r) const {
+  r->skeleton_points = r->scattered_points = r->discarded_points = 0;
   for (PointLabel l : frame.labels) {
     if (l == PointLabel::kSkeleton)
       ++r->skeleton_points;
@@ -474,7 +491,8 @@ void LioPpf::Impl::ResumeLio(ScanResult* r) {
 
 // The iterated EKF with this scan's residual providers. The updated pose (T_world_lidar_out) is
 // the one at which the splitter and the providers close the scan.
-IekfReport LioPpf::Impl::Register(double t_end, bool lidar, Eigen::Isometry3d* T_world_lidar_out,
+IekfReport LioPpf::Impl::Register(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
+                                  double t_end, bool lidar, Eigen::Isometry3d* T_world_lidar_out,
                                   ScanResult* r) {
   std::vector<ResidualProvider*> providers;
   providers.push_back(knn.get());
@@ -486,6 +504,9 @@ IekfReport LioPpf::Impl::Register(double t_end, bool lidar, Eigen::Isometry3d* T
   const NavState predicted = state;
   contradicted = false;
   IekfReport rep = IekfUpdate(iekf, config.extrinsic.T_imu_lidar, providers, &state);
+  if (!lidar && skeleton) {
+    rep = RedeskewGapTurn(scan, pts, t_end, predicted, iekf, providers, rep, r);
+  }
   // The LiDAR-only scans were aligned from guesses already; the IMU's prediction is checked here.
   if (!lidar && config.consistency.check) {
     const auto t0 = Clock::now();
@@ -518,6 +539,56 @@ IekfReport LioPpf::Impl::Register(double t_end, bool lidar, Eigen::Isometry3d* T
   for (ResidualProvider* p : providers) p->EndScan(T_world_lidar);
   *T_world_lidar_out = T_world_lidar;
   return rep;
+}
+
+// kPpf's answer to a scan propagated across part of a bridged IMU gap (kNN has CorrectGapTurn
+// before the update): the interpolation across the gap missed what the body turned there, and the
+// scan was de-skewed without it. The update's own rotation correction, read as a constant rate
+// over the crossed part, de-skews the scan again, and the update runs again from the same
+// prediction and covariance on the re-split scan: the de-skew is linearised at the updated pose
+// while the prior stays the IMU's, so the LiDAR is not counted twice. A few passes reach the fixed
+// point. The scan alone is no measure here: kPpf's kNN map holds only the scattered points.
+IekfReport LioPpf::Impl::RedeskewGapTurn(const DecodedScan& scan,
+                                         const std::vector<TimedPoint>& pts, double t_end,
+                                         const NavState& predicted, const IekfOptions& iekf,
+                                         const std::vector<ResidualProvider*>& providers,
+                                         const IekfReport& rep, ScanResult* r) {
+  if (!(gap_to_s > gap_from_s) || saturation.seconds > 0.0) return rep;
+  constexpr int kPasses = 3;
+  constexpr double kMinTurnRad = 0.02 * M_PI / 180.0;
+  constexpr double kSettledRad = 0.01 * M_PI / 180.0;
+  const auto t0 = Clock::now();
+  const double crossed = gap_to_s - gap_from_s;
+  IekfReport out = rep;
+  Eigen::Vector3d used = Eigen::Vector3d::Zero();
+  int passes = 0;
+  for (; passes < kPasses; ++passes) {
+    const Eigen::Vector3d turn = SO3Log(state.R_world_imu * predicted.R_world_imu.transpose());
+    if (turn.norm() < kMinTurnRad || (passes > 0 && (turn - used).norm() < kSettledRad)) break;
+    used = turn;
+    const Eigen::Vector3d rate = predicted.R_world_imu.transpose() * turn / crossed;
+    const NavState updated = state;
+    state = predicted;
+    RepropagateGap(rate, scan, pts, t_end);
+    // The split follows the tracked planes from the updated pose; the update starts from the
+    // prediction again.
+    PrepareFrame(t_end);
+    frame.T_world_lidar_predicted = updated.T_world_imu() * config.extrinsic.T_imu_lidar;
+    tracker->Split(&frame);
+    frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
+    state = predicted;
+    frame.T_world_lidar_predicted = state.T_world_imu() * config.extrinsic.T_imu_lidar;
+    for (ResidualProvider* p : providers) p->BeginScan(frame);
+    out = IekfUpdate(iekf, config.extrinsic.T_imu_lidar, providers, &state);
+  }
+  if (passes == 0) return rep;
+  CountLabels(r);
+  r->timings.ppf += MsSince(t0);
+  std::ostringstream os;
+  os << "the update turns the prediction across the gap by " << used.norm() * 180.0 / M_PI
+     << " deg: de-skewed again with it (" << passes << (passes == 1 ? " pass)" : " passes)");
+  Append(&r->reason, os.str());
+  return out;
 }
 
 // Config::consistency: the posterior's fit against the recent scans'; far worse, guesses around

@@ -182,7 +182,8 @@ struct RunResult {
 // seconds since the replay started. Fails the test on any hang.
 void RunPipeline(const std::string& bag, const std::string& dir, double rate,
                  const std::string& extra_node_yaml, int stop_signal, RunResult* out,
-                 const std::function<void(ChildProcess&, double)>& during_replay = nullptr) {
+                 const std::function<void(ChildProcess&, double)>& during_replay = nullptr,
+                 const std::string& core_mode = "") {
   const int domain = ppf::test::TestDomainId(static_cast<int>(rate * 10));
   const std::string dds_args = std::to_string(domain);
   out->dir = dir;
@@ -193,7 +194,8 @@ void RunPipeline(const std::string& bag, const std::string& dir, double rate,
         << "}\n"
         // The simulated robot's calibration (non-identity T_imu_lidar) over the LiDAR preset.
         << "core: {config_file: \"" << PPF_CONFIG_DIR << "/hdl32.yaml\", calibration_file: \""
-        << bag << "/calibration.yaml\"}\n"
+        << bag << "/calibration.yaml\""
+        << (core_mode.empty() ? "" : ", mode: " + core_mode) << "}\n"
         << "trajectory: {tum_file: \"" << dir << "/node.tum\"}\n"
         << extra_node_yaml;
   }
@@ -554,7 +556,8 @@ TEST_F(EndToEnd, FiveTimesRateKeepsUpOrDropsAsDesignedWithBoundedMemory) {
 // Both streams silent for 3 s while driving at about 8 m/s (a driver or link restart), longer
 // than the IMU bridges: the first scan after it is re-localized on the map (one WARN, counted in
 // the summary) instead of being bridged blind, nothing is reset, and from 1 s after the data
-// returns the odometry is within 0.1 m of the truth again.
+// returns the odometry is within 0.1 m of the truth again. In kPpf, the product's mode (kNN's
+// re-localization is the same code, held to the same bounds offline by test_ppf_disturbance).
 TEST_F(EndToEnd, BothStreamsSilentForThreeSecondsWhileDrivingRelocalizeOnTheMap) {
   const std::string dir = dir_ + "/silence";
   ASSERT_EQ(mkdir(dir.c_str(), 0755), 0);
@@ -566,7 +569,7 @@ TEST_F(EndToEnd, BothStreamsSilentForThreeSecondsWhileDrivingRelocalizeOnTheMap)
        "5:3", "--seed", "1", "--storage", "mcap"},
       bag, dir + "/sim.log"));
   RunResult run;
-  RunPipeline(bag, dir, 1.0, "", SIGINT, &run);
+  RunPipeline(bag, dir, 1.0, "", SIGINT, &run, nullptr, "ppf");
   std::system(("rm -f '" + bag + "/'*.mcap").c_str());  // ~130 MB; the ground truth stays
   ASSERT_FALSE(HasFatalFailure());
   EXPECT_EQ(SummaryField(run.summary, "scans_lost"), 0);

@@ -290,16 +290,6 @@ void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan,
   Append(&r->reason, os.str());
 }
 
-// A scan propagated across part of a bridged gap: the integration assumed the turn rate went
-// linearly from the sample before the gap to the one after, which misses whatever the body did
-// in between (a pitch oscillating on the suspension), and the scan was de-skewed with it. As for
-// a saturated gyro, the scan alone (a few Gauss-Newton steps on the map, wide gate, no prior)
-// measures the turn at the scan end; read as a constant rate beyond the interpolated one over
-// the part of the gap this scan crossed (the previous scan's update fixed the pose before it),
-// it goes into the samples over that part, and propagation and de-skew run again. The
-// covariance keeps the gap's widening: the update still decides. Not with a skeleton tracker
-// (kPpf): its kNN map holds the scattered points only, against which the whole scan's turn is
-// no better known than the gap left it (docs/decisions.md, "IMU gap bridging").
 // Propagation from the gap's start again, with a body rate added to the samples over the part
 // of the gap this scan crossed, and the de-skew from it; the covariance stays the prediction's.
 void LioPpf::Impl::RepropagateGap(const Eigen::Vector3d& rate, const DecodedScan& scan,
@@ -332,6 +322,17 @@ void LioPpf::Impl::RepropagateGap(const Eigen::Vector3d& rate, const DecodedScan
   Deskew(scan, pts, trace, t_end);
 }
 
+// A scan propagated across part of a bridged gap: the integration assumed the turn rate went
+// linearly from the sample before the gap to the one after, which misses whatever the body did
+// in between (a pitch oscillating on the suspension), and the scan was de-skewed with it. As for
+// a saturated gyro, the scan alone (a few Gauss-Newton steps on the map, wide gate, no prior)
+// measures the turn at the scan end; read as a constant rate beyond the interpolated one over
+// the part of the gap this scan crossed (the previous scan's update fixed the pose before it),
+// it goes into the samples over that part, and propagation and de-skew run again. The
+// covariance keeps the gap's widening: the update still decides. Not with a skeleton tracker
+// (kPpf): its kNN map holds the scattered points only, against which the whole scan's turn is
+// no better known than the gap left it; kPpf takes the update's turn instead (RedeskewGapTurn;
+// docs/decisions.md, "IMU gap bridging").
 void LioPpf::Impl::CorrectGapTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                                   double t_end, ScanResult* r) {
   if (!(gap_to_s > gap_from_s) || !map_initialized || saturation.seconds > 0.0 || tracker) return;

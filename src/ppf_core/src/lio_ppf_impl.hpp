@@ -168,6 +168,8 @@ struct LioPpf::Impl {
   void RedeskewLidarOnly(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end);
   void EstimateScanVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                             double t_end);
+  ScanFrame ScanAloneSample();
+  Eigen::Isometry3d AlignScanAlone(const ScanFrame& sample, int steps) const;
   Eigen::Vector3d ScanAloneTurn(int steps);
   void RepropagateGap(const Eigen::Vector3d& rate_body, const DecodedScan& scan,
                       const std::vector<TimedPoint>& pts, double t_end);

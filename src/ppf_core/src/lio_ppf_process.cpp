@@ -206,15 +206,17 @@ void LioPpf::Impl::Deskew(const DecodedScan& scan, const std::vector<TimedPoint>
   }
 }
 
-// The turn (world frame, rad) that a few Gauss-Newton steps of the scan alone on the map (wide
-// gate, no prior) make of the predicted pose: what the scan says the prediction missed.
-Eigen::Vector3d LioPpf::Impl::ScanAloneTurn(int steps) {
-  const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
+// A sample of the de-skewed frame on the kNN map, for the scan alone.
+ScanFrame LioPpf::Impl::ScanAloneSample() {
   frame.map = &map;
-  frame.T_imu_lidar = T_il;
-  const ScanFrame sample = SampleFrame(frame, config.consistency.fit_points);
-  Eigen::Isometry3d T = state.T_world_imu() * T_il;
-  const Eigen::Matrix3d R_predicted = T.linear();
+  frame.T_imu_lidar = config.extrinsic.T_imu_lidar;
+  return SampleFrame(frame, config.consistency.fit_points);
+}
+
+// The pose a few Gauss-Newton steps of the scan alone on the map (wide gate, no prior) reach
+// from the predicted one.
+Eigen::Isometry3d LioPpf::Impl::AlignScanAlone(const ScanFrame& sample, int steps) const {
+  Eigen::Isometry3d T = state.T_world_imu() * config.extrinsic.T_imu_lidar;
   for (int k = 0; k < steps; ++k) {
     const PoseProbe p = ProbePose(sample, T, config.lidar_only, config.knn, config.iekf,
                                   config.lidar_only.coarse_max_residual);
@@ -222,70 +224,88 @@ Eigen::Vector3d LioPpf::Impl::ScanAloneTurn(int steps) {
     T.linear() = NormalizeRotation(SO3Exp(p.step_rot) * T.linear());
     T.translation() += p.step_pos;
   }
-  return SO3Log(T.linear() * R_predicted.transpose());
+  return T;
+}
+
+// The turn (world frame, rad) the scan alone makes of the predicted pose: what the scan says the
+// prediction missed.
+Eigen::Vector3d LioPpf::Impl::ScanAloneTurn(int steps) {
+  const Eigen::Matrix3d R_predicted = (state.T_world_imu() * config.extrinsic.T_imu_lidar).linear();
+  return SO3Log(AlignScanAlone(ScanAloneSample(), steps).linear() * R_predicted.transpose());
 }
 
 // A gyro axis read at saturation while predicting this scan: the turn beyond the reading is
-// unknown, and the scan was de-skewed without it, smeared by as much as it turned. The scan alone
-// (a few Gauss-Newton steps on the map, wide gate, no prior) measures the missing turn at the
-// scan end; read as a rate beyond each saturated reading (least squares over the saturated axes,
-// never against the reading's direction), it goes into those samples only, and propagation and
-// de-skew run again. The rotation covariance keeps its widening: the update still decides.
-void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan,
-                                        const std::vector<TimedPoint>& pts, double t_end,
-                                        ScanResult* r) {
+// unknown, and the scan was de-skewed without it, smeared by as much as it turned. The scan's
+// end pose cannot show it: registered as it was de-skewed, the smeared points settle at a
+// compromise pose that fits them nearly as well as the right one would fit the right points. Their
+// smear shows it: de-skewed with the right rate beyond the reading, walls seen early line up with
+// those seen late. So the rate beyond each saturated reading (one per axis and sign, constant over
+// the scan, 0 to the reading itself) is searched for the de-skew the map fits best (a few
+// Gauss-Newton steps of the scan alone on the map for each, wide gate, no prior; the least rate
+// within a few points of the best fit, as a flat fit says nothing), and propagation and de-skew run
+// with it. The rotation covariance keeps its widening: the update still decides.
+void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
+                                        double t_end, ScanResult* r) {
   if (!(saturation.seconds > 0.0) || !map_initialized || r->imu_gap_s > 0.0) return;
-  constexpr int kPasses = 2;
-  constexpr int kSteps = 4;
-  constexpr double kMinTurnRad = 0.2 * M_PI / 180.0;
+  constexpr int kGrid = 4;   // coarse rates per saturated axis: reading * k / kGrid, k = 0..kGrid
+  constexpr int kSteps = 6;  // Gauss-Newton steps of the scan alone per rate
+  constexpr double kFlat = 0.005;  // share of the covered points within which fits are equal
   Eigen::Matrix<double, 6, 1> excess = Eigen::Matrix<double, 6, 1>::Zero();
-  double first_turn_deg = 0.0;
-  for (int pass = 0; pass < kPasses; ++pass) {
-    const Eigen::Vector3d turn = ScanAloneTurn(kSteps);
-    if (pass == 0) first_turn_deg = turn.norm() * 180.0 / M_PI;
-    if (turn.norm() < kMinTurnRad) break;
-    // Non-negative least squares over the saturated columns (one or two in practice): solve,
-    // drop the columns that come out negative, solve again.
-    std::vector<int> cols;
-    for (int c = 0; c < 6; ++c) {
-      if (saturation.turn_per_rate.col(c).norm() > 1e-6) cols.push_back(c);
-    }
-    Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();
-    for (int round = 0; round < 2 && !cols.empty(); ++round) {
-      Eigen::MatrixXd U(3, cols.size());
-      for (size_t i = 0; i < cols.size(); ++i) U.col(i) = saturation.turn_per_rate.col(cols[i]);
-      const Eigen::VectorXd xi = (U.transpose() * U +
-                                  1e-9 * Eigen::MatrixXd::Identity(cols.size(), cols.size()))
-                                     .ldlt()
-                                     .solve(U.transpose() * turn);
-      std::vector<int> kept;
-      x.setZero();
-      for (size_t i = 0; i < cols.size(); ++i) {
-        if (xi(i) > 0.0) {
-          kept.push_back(cols[i]);
-          x(cols[i]) = xi(i);
-        }
-      }
-      if (kept.size() == cols.size()) break;
-      cols = kept;
-    }
-    // A rate beyond twice full scale is no saturation this model explains.
-    for (int c = 0; c < 6; ++c) x(c) = std::min(x(c), saturation.reading(c));
-    if (x.isZero()) break;
-    excess += x;
+  // Propagation and de-skew with `e` beyond the readings.
+  auto deskew = [&](const Eigen::Matrix<double, 6, 1>& e) {
     std::vector<ImuSample> samples = saturation_samples;
-    AddUnmeasuredRate(excess, config.imu.noise.gyro_range, &samples);
+    AddUnmeasuredRate(e, config.imu.noise.gyro_range, &samples);
     state = saturation_start;
     PoseTrace trace;
     GyroSaturation again;
     PropagateImu(samples, t_end, acc_scale, config.imu.noise, &state, &trace, &again);
     Deskew(scan, pts, trace, t_end);
+  };
+  // The fit of the scan so de-skewed, at the pose the scan alone settles at.
+  auto deskew_and_score = [&](const Eigen::Matrix<double, 6, 1>& e) {
+    deskew(e);
+    const ScanFrame sample = ScanAloneSample();
+    return ScoreFit(sample, AlignScanAlone(sample, kSteps), config.lidar_only, config.knn);
+  };
+  for (int c = 0; c < 6; ++c) {
+    const double reading = saturation.reading(c);
+    if (saturation.turn_per_rate.col(c).norm() < 1e-6 || !(reading > 0.0)) continue;
+    auto score_at = [&](double x) {
+      Eigen::Matrix<double, 6, 1> e = excess;
+      e(c) = x;
+      return deskew_and_score(e);
+    };
+    // Coarse: the least rate within kFlat of the best fit on a grid.
+    std::vector<FitScore> scores;
+    size_t most = 0;
+    for (int k = 0; k <= kGrid; ++k) {
+      scores.push_back(score_at(reading * k / kGrid));
+      most = std::max(most, scores.back().inliers);
+    }
+    const double flat = std::max(2.0, kFlat * static_cast<double>(scores.front().covered));
+    int chosen = 0;
+    while (static_cast<double>(scores[chosen].inliers) < static_cast<double>(most) - flat) ++chosen;
+    double x = reading * chosen / kGrid;
+    size_t inliers = scores[chosen].inliers;
+    // Fine: halved steps either side, moving only to a strictly better fit.
+    for (double h = 0.5 * reading / kGrid; h > 0.2 * reading / kGrid; h *= 0.5) {
+      for (double candidate : {x - h, x + h}) {
+        if (candidate < 0.0 || candidate > reading) continue;
+        const FitScore f = score_at(candidate);
+        if (f.inliers > inliers) {
+          inliers = f.inliers;
+          x = candidate;
+          break;
+        }
+      }
+    }
+    excess(c) = x;
   }
+  deskew(excess);
   std::ostringstream os;
-  os << "gyro saturated for " << saturation.seconds << " s, the scan alone turns the prediction by "
-     << first_turn_deg << " deg";
+  os << "gyro saturated for " << saturation.seconds << " s";
   if (!excess.isZero()) {
-    os << ": the scan showed up to " << excess.maxCoeff() << " rad/s beyond the reading";
+    os << ": the scan's smear showed up to " << excess.maxCoeff() << " rad/s beyond the reading";
   }
   Append(&r->reason, os.str());
 }
@@ -324,9 +344,9 @@ void LioPpf::Impl::RepropagateGap(const Eigen::Vector3d& rate, const DecodedScan
 
 // A scan propagated across part of a bridged gap: the integration assumed the turn rate went
 // linearly from the sample before the gap to the one after, which misses whatever the body did
-// in between (a pitch oscillating on the suspension), and the scan was de-skewed with it. As for
-// a saturated gyro, the scan alone (a few Gauss-Newton steps on the map, wide gate, no prior)
-// measures the turn at the scan end; read as a constant rate beyond the interpolated one over
+// in between (a pitch oscillating on the suspension), and the scan was de-skewed with it. The
+// scan alone (a few Gauss-Newton steps on the map, wide gate, no prior) measures the turn at
+// the scan end (ScanAloneTurn); read as a constant rate beyond the interpolated one over
 // the part of the gap this scan crossed (the previous scan's update fixed the pose before it),
 // it goes into the samples over that part, and propagation and de-skew run again. The
 // covariance keeps the gap's widening: the update still decides. Not with a skeleton tracker

@@ -248,7 +248,7 @@ void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan, const std::vect
                                         double t_end, ScanResult* r) {
   if (!(saturation.seconds > 0.0) || !map_initialized || r->imu_gap_s > 0.0) return;
   constexpr int kGrid = 4;   // coarse rates per saturated axis: reading * k / kGrid, k = 0..kGrid
-  constexpr int kSteps = 6;  // Gauss-Newton steps of the scan alone per rate
+  constexpr int kSteps = 4;  // Gauss-Newton steps of the scan alone per rate
   constexpr double kFlat = 0.005;  // share of the covered points within which fits are equal
   Eigen::Matrix<double, 6, 1> excess = Eigen::Matrix<double, 6, 1>::Zero();
   // Propagation and de-skew with `e` beyond the readings.

@@ -173,7 +173,7 @@ INSTANTIATE_TEST_SUITE_P(
         // within the full bounds (saturation recurs at every shake peak, so the heading maxima
         // are not the measure). kKnn within the full tilt bound too; in kPpf the search sees the
         // scattered points' map only, and a scan whose missing turn it cannot find keeps degrees
-        // of heading and about 0.1 deg of tilt until the next (not yet the full tilt bound).
+        // of heading and some tilt until the next (not yet the full tilt bound).
         Case{"handheld_gyro_range_knn", kHandheld, "vlp16", 20, "--gyro-range 2", 5, kKnn,
              Case::kRelocated, 0.05, 0.05, 1.2},
         Case{"handheld_gyro_range_ppf", kHandheld, "vlp16", 20, "--gyro-range 2", 5, kPpf,

@@ -149,7 +149,9 @@ inline void RunNodeAndPeer(const std::string& peer_exe, const std::string& dir, 
   ASSERT_TRUE(node.Start({PPF_NODE_EXE, "--config", dir + "/node.yaml"}, {}, dir + "/node.log"));
   std::string line;
   ASSERT_TRUE(node.WaitForLine("PPF_NODE_READY", &line, 20s)) << "see " << dir << "/node.log";
-  std::vector<std::string> argv = {peer_exe, dir + "/seq.dump", std::to_string(domain), "20",
+  // The peer stops waiting once the last scan's odometry is in: 40 s at most only binds a node
+  // far behind (instrumented, loaded).
+  std::vector<std::string> argv = {peer_exe, dir + "/seq.dump", std::to_string(domain), "40",
                                    "--go-file", dir + "/go"};
   argv.insert(argv.end(), peer_args.begin(), peer_args.end());
   ASSERT_TRUE(

@@ -261,11 +261,26 @@ void LioPpf::Impl::CorrectSaturatedTurn(const DecodedScan& scan, const std::vect
     PropagateImu(samples, t_end, acc_scale, config.imu.noise, &state, &trace, &again);
     Deskew(scan, pts, trace, t_end);
   };
-  // The fit of the scan so de-skewed, at the pose the scan alone settles at.
+  // The fit of the scan so de-skewed, at the pose the scan alone settles at: the points near the
+  // kNN map within the fit gate of its planes, and in kPpf also those near the skeleton's patches.
   auto deskew_and_score = [&](const Eigen::Matrix<double, 6, 1>& e) {
     deskew(e);
     const ScanFrame sample = ScanAloneSample();
-    return ScoreFit(sample, AlignScanAlone(sample, kSteps), config.lidar_only, config.knn);
+    const Eigen::Isometry3d T = AlignScanAlone(sample, kSteps);
+    FitScore score = ScoreFit(sample, T, config.lidar_only, config.knn);
+    // kPpf: the kNN map holds the scattered points only; the skeleton's surfaces are in the
+    // tracker's patch map, where each sampled point meets the nearest patch of its cell.
+    if (tracker) {
+      const PlanePatchMap& patches = tracker->patch_map();
+      for (const Eigen::Vector3f& q : sample.points_lidar) {
+        const Eigen::Vector3d p = T * q.cast<double>();
+        const PlanePatchMap::Patch* patch = patches.Find(p, Eigen::Vector3d::UnitZ(), 0.0);
+        if (patch == nullptr) continue;
+        ++score.covered;
+        if (patch->plane.Distance(p) < config.lidar_only.fit_gate) ++score.inliers;
+      }
+    }
+    return score;
   };
   for (int c = 0; c < 6; ++c) {
     const double reading = saturation.reading(c);

@@ -168,16 +168,15 @@ INSTANTIATE_TEST_SUITE_P(
         Case{"turn_imu_gap_knn", kUrban, "vlp16", 24, "--imu-gap 15:0.5", 15, kKnn},
         Case{"turn_imu_gap_ppf", kUrban, "vlp16", 24, "--imu-gap 15:0.5", 15, kPpf},
         // A gyro saturating at 2 rad/s on a hand-held walk (its shake peaks at 2.6 rad/s): the
-        // rate beyond each saturated reading is searched for the de-skew the map fits best and
-        // the scan de-skewed with it (imu.noise.gyro_range). Position, APE and heading 1 s after
-        // within the full bounds (saturation recurs at every shake peak, so the heading maxima
-        // are not the measure). kKnn within the full tilt bound too; in kPpf the search sees the
-        // scattered points' map only, and a scan whose missing turn it cannot find keeps degrees
-        // of heading and some tilt until the next (not yet the full tilt bound).
+        // rate beyond each saturated reading is searched for the de-skew the map fits best (kPpf:
+        // the kNN map and the skeleton's patch map) and the scan de-skewed with it
+        // (imu.noise.gyro_range). Position, APE, heading 1 s after and tilt within the full
+        // bounds (saturation recurs at every shake peak, so the heading maxima are not the
+        // measure).
         Case{"handheld_gyro_range_knn", kHandheld, "vlp16", 20, "--gyro-range 2", 5, kKnn,
              Case::kRelocated, 0.05, 0.05, 1.2},
         Case{"handheld_gyro_range_ppf", kHandheld, "vlp16", 20, "--gyro-range 2", 5, kPpf,
-             Case::kRelocated, 0.05, 0.15, 1.2}),
+             Case::kRelocated, 0.05, 0.05, 1.2}),
     [](const ::testing::TestParamInfo<Case>& info) { return info.param.name; });
 
 }  // namespace

@@ -252,15 +252,20 @@ void LioPpf::Impl::RedeskewLidarOnly(const DecodedScan& scan, const std::vector<
 // A re-localization after a gap: the scan was de-skewed with the speed the filter had before
 // the gap, and a vehicle that sped up or slowed down meanwhile smears the scan by the difference
 // over one sweep, which shifts and tilts the pose the map then takes. The scan alone (Gauss-Newton
-// steps on the map, wide gate, no prior) measures its pose and its velocity together, from how
-// the early points fit against the late ones; the frame is de-skewed again with that velocity,
-// and LIO resumes with it (ResumeLio) instead of the chord over the gap.
+// steps on the map, no prior) measures its pose and its velocity together, from how the early
+// points fit against the late ones; the frame is de-skewed again with that velocity, and LIO
+// resumes with it (ResumeLio) instead of the chord over the gap. The wide gate finds the
+// alignment; it also keeps rows paired with the wrong surface, which pull the velocity back
+// toward the one the scan was de-skewed with, so the gate then narrows step by step to twice the
+// fit gate (coarse to fine, as in ICP). In kPpf the sample also meets the skeleton's patches:
+// the walls and the ground are not in its kNN map.
 void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan,
                                         const std::vector<TimedPoint>& pts, double t_end) {
   has_scan_velocity = false;
   if (!(scan.has_time_field || scan.times_estimated)) return;  // nothing to observe it by
   if (pts.size() != frame.points_lidar.size() || pts.empty()) return;
-  constexpr int kSteps = 8;
+  constexpr int kWideSteps = 8;
+  constexpr int kNarrowSteps = 12;
   const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
   // The filter's speed before the gap, along the re-localized heading.
   const Eigen::Vector3d v_body = motion.pose().linear().transpose() * motion.velocity_world();
@@ -276,6 +281,7 @@ void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan,
 
   std::vector<size_t> kept;
   ScanFrame sample = SampleFrame(frame, config.lidar_only.coarse_points, &kept);
+  if (tracker) sample.patches = &tracker->patch_map();
   std::vector<float> dt;
   dt.reserve(kept.size());
   for (size_t i : kept) dt.push_back(static_cast<float>(pts[i].t - t_end));
@@ -286,17 +292,27 @@ void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan,
                                  : Eigen::Vector3d::Zero();
   Eigen::Isometry3d T = state.T_world_imu() * T_il;
   Eigen::Vector3d v = knot.v;
-  for (int k = 0; k < kSteps; ++k) {
+  const double wide_gate = config.lidar_only.coarse_max_residual;
+  const double fine_gate = std::min(wide_gate, 2.0 * config.lidar_only.fit_gate);
+  double gate = wide_gate;
+  bool narrowing = false;
+  for (int k = 0, narrowed = 0; k < kWideSteps + kNarrowSteps; ++k) {
     const PoseProbe p =
-        ProbePoseAndVelocity(sample, dt, up, T, config.lidar_only, config.knn, config.iekf,
-                             config.lidar_only.coarse_max_residual);
+        ProbePoseAndVelocity(sample, dt, up, T, config.lidar_only, config.knn, config.iekf, gate);
     T.linear() = NormalizeRotation(SO3Exp(p.step_rot) * T.linear());
     T.translation() += p.step_pos;
     v += p.step_vel;
     // The velocity's share of each sample point's de-skew, in the scan-end LiDAR frame.
     const Eigen::Vector3f shift = (T.linear().transpose() * p.step_vel).cast<float>();
     for (size_t i = 0; i < sample.points_lidar.size(); ++i) sample.points_lidar[i] += dt[i] * shift;
-    if (p.step_rot.norm() < 1e-4 && p.step_pos.norm() < 1e-3 && p.step_vel.norm() < 1e-2) break;
+    const bool settled =
+        p.step_rot.norm() < 1e-4 && p.step_pos.norm() < 1e-3 && p.step_vel.norm() < 1e-2;
+    if (narrowing) {
+      if ((gate <= fine_gate && settled) || ++narrowed >= kNarrowSteps) break;
+    } else {
+      narrowing = settled || k + 1 >= kWideSteps;
+    }
+    if (narrowing) gate = std::max(fine_gate, 0.5 * gate);
   }
   const Eigen::Isometry3d T_world_imu = T * T_il.inverse();
   state.R_world_imu = T_world_imu.linear();

@@ -414,10 +414,11 @@ void LioPpf::Impl::StartMap(bool lidar, double t_end, ScanResult* r) {
 }
 
 // The split into skeleton and scattered points (kPpf) and the count of each label. A scan
-// re-localized after a long gap is registered on the kNN map alone: its guess may lie a street
-// length from the truth, where the tracked planes pair with the wrong surfaces and tilt it.
+// re-localized after a long gap is split too: its guesses were aligned on the kNN map (and its
+// velocity probe on the patches), so its prediction is the re-localized pose, and the skeleton's
+// rows on the walls and the ground pin what the scattered points alone leave loose (its height).
 void LioPpf::Impl::SplitScan(ScanResult* r) {
-  if (tracker && !Relocating()) {
+  if (tracker) {
     const auto t0 = Clock::now();
     tracker->Split(&frame);
     frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
@@ -532,7 +533,7 @@ IekfReport LioPpf::Impl::Register(const DecodedScan& scan, const std::vector<Tim
                                   ScanResult* r) {
   std::vector<ResidualProvider*> providers;
   providers.push_back(knn.get());
-  const bool skeleton = tracker && !Relocating();
+  const bool skeleton = tracker != nullptr;
   if (skeleton) providers.push_back(tracker->residual_provider().get());  // PPF: skeleton rows
   for (ResidualProvider* p : providers) p->BeginScan(frame);
   IekfOptions iekf = config.iekf;
@@ -567,7 +568,8 @@ IekfReport LioPpf::Impl::Register(const DecodedScan& scan, const std::vector<Tim
   const Eigen::Isometry3d T_world_lidar = state.T_world_imu() * config.extrinsic.T_imu_lidar;
   if (skeleton) {
     const auto t0 = Clock::now();
-    tracker->Finish(frame, T_world_lidar);
+    // A re-localized pose extends no map until LIO confirms it (ExtendMap).
+    tracker->Finish(frame, T_world_lidar, !Relocating());
     r->skeleton_planes = tracker->window().planes();  // map frame until FillState
     r->skeleton_patches = tracker->patch_map().num_patches();
     r->timings.ppf += MsSince(t0);

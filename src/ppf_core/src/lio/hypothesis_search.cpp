@@ -10,6 +10,7 @@
 #endif
 
 #include "ppf_core/lio/voxel_map.hpp"
+#include "ppf_core/ppf/plane_patch_map.hpp"
 
 namespace ppf {
 
@@ -19,6 +20,7 @@ ScanFrame SampleFrame(const ScanFrame& frame, int max_points, std::vector<size_t
   s.T_world_lidar_predicted = frame.T_world_lidar_predicted;
   s.T_imu_lidar = frame.T_imu_lidar;
   s.map = frame.map;
+  s.patches = frame.patches;
   s.residual_max_range = frame.residual_max_range;
   const size_t n = frame.points_lidar.size();
   const size_t stride =
@@ -81,11 +83,20 @@ PoseProbe Probe(const ScanFrame& frame, const std::vector<float>* dt,
     for (long i = 0; i < n; ++i) {
       const Eigen::Vector3d p =
           T_world_lidar * frame.points_lidar[static_cast<size_t>(i)].cast<double>();
-      if (map.GetClosest(p.cast<float>(), k, knn.max_neighbor_distance, &nn) < k) continue;
-      ++covered;
       Eigen::Vector3d normal;
       double d;
-      if (!FitPlane(nn, knn.plane_threshold, &normal, &d, knn.min_plane_spread)) continue;
+      if (map.GetClosest(p.cast<float>(), k, knn.max_neighbor_distance, &nn) >= k) {
+        ++covered;
+        if (!FitPlane(nn, knn.plane_threshold, &normal, &d, knn.min_plane_spread)) continue;
+      } else {
+        const PlanePatchMap::Patch* patch =
+            frame.patches != nullptr ? frame.patches->Find(p, Eigen::Vector3d::UnitZ(), 0.0)
+                                     : nullptr;
+        if (patch == nullptr) continue;
+        ++covered;
+        normal = patch->plane.n;
+        d = patch->plane.d;
+      }
       const double r = normal.dot(p) + d;
       if (std::abs(r) < options.fit_gate) ++inliers;
       if (!(std::abs(r) < wide_gate)) continue;

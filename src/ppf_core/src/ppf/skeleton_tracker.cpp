@@ -35,9 +35,10 @@ void SkeletonTracker::Split(ScanFrame* frame) {
   for (int i : prefit_.discarded_indices) frame->labels[i] = PointLabel::kDiscarded;
 }
 
-void SkeletonTracker::Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar) {
+void SkeletonTracker::Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+                             bool extend_map) {
   last_ids_ = window_.Update(prefit_.planes, T_world_lidar);
-  if (!config().anchor_patches) return;
+  if (!config().anchor_patches || !extend_map) return;
   const size_t n = std::min(prefit_.skeleton_indices.size(), prefit_.skeleton_plane.size());
   // Each plane's normal in the world once, not once per point of it (the same product).
   normals_world_.clear();

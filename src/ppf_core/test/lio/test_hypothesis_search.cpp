@@ -1,7 +1,7 @@
 // The coarse alignment from several motion guesses (hypothesis_search.hpp): a turn the model
 // missed is recovered, and a guess that fits ends the search; the scan alone measures the velocity
-// it was taken at. The facade's LiDAR-only runs are in
-// test_end_to_end (synthetic room) and ppf_tools' test_lidar_only_real / test_accuracy.
+// it was taken at; in kPpf the probes also meet the skeleton's patches. The facade's LiDAR-only
+// runs are in test_end_to_end (synthetic room) and ppf_tools' test_lidar_only_real / test_accuracy.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,6 +12,7 @@
 #include "ppf_core/lio/hypothesis_search.hpp"
 #include "ppf_core/lio/so3.hpp"
 #include "ppf_core/lio/voxel_map.hpp"
+#include "ppf_core/ppf/plane_patch_map.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {
@@ -147,6 +148,48 @@ TEST(ProbePoseAndVelocity, MeasuresTheSpeedTheScanWasTakenAt) {
   const PoseProbe sharp = ProbePose(f.frame, T, LidarOnlyOptions(), KnnOptions(), IekfOptions(), 0.0);
   EXPECT_GT(sharp.score.fit, smeared.score.fit + 0.1)
       << sharp.score.fit << " vs " << smeared.score.fit;
+}
+
+// kPpf's kNN map holds the scattered points only: here the room's vertical faces, while its
+// floor and ceiling are skeleton patches. A scan 0.1 m too high: on the kNN map alone nothing pins
+// the height and the probe leaves it; with the patches (ScanFrame::patches) the step takes it
+// back, and the points on them count in the fit.
+TEST(ProbePose, PointsTheKnnMapLacksMeetTheSkeletonPatches) {
+  RoomFixture f;
+  PlanePatchMap patches;
+  auto horizontal = [](float z) {
+    for (float h : {-2.0f, 4.0f, 1.0f, 0.5f, 2.0f}) {
+      if (std::abs(z - h) < 0.05f) return true;
+    }
+    return false;
+  };
+  for (const Eigen::Vector3f& p : f.Scan(Eigen::Isometry3d::Identity())) {
+    if (!horizontal(p.z())) {
+      f.map.Insert(p);
+    } else if (std::abs(p.z() + 2.0f) < 0.05f || std::abs(p.z() - 4.0f) < 0.05f) {
+      patches.Insert(p.cast<double>(), Eigen::Vector3d::UnitZ());
+    }
+  }
+  patches.FinishInsert();
+  ASSERT_GT(patches.num_patches(), 10u);
+  const Eigen::Isometry3d truth = Pose(Eigen::Vector3d(0.5, 0.3, 0.0), Eigen::Vector3d(0, 0, 0.1));
+  for (const Eigen::Vector3f& p : f.Scan(truth)) f.frame.points_lidar.push_back(p);
+  f.frame.labels.assign(f.frame.points_lidar.size(), PointLabel::kScattered);
+  f.frame.map = &f.map;
+  Eigen::Isometry3d high = truth;
+  high.translation().z() += 0.1;
+
+  // Neighbours along one scan line fit no plane (their normal could point anywhere about it).
+  KnnOptions knn;
+  knn.min_plane_spread = 0.1;
+  const PoseProbe alone = ProbePose(f.frame, high, LidarOnlyOptions(), knn, IekfOptions(), 1.0);
+  f.frame.patches = &patches;
+  const PoseProbe both = ProbePose(f.frame, high, LidarOnlyOptions(), knn, IekfOptions(), 1.0);
+  EXPECT_LT(std::abs(alone.step_pos.z()), 0.01) << alone.step_pos.transpose();
+  EXPECT_NEAR(both.step_pos.z(), -0.1, 0.02) << both.step_pos.transpose();
+  EXPECT_GT(both.score.covered, alone.score.covered + alone.score.covered / 10);
+  // The sample a probe works on keeps the patches.
+  EXPECT_EQ(SampleFrame(f.frame, 100).patches, &patches);
 }
 
 }  // namespace

@@ -23,6 +23,7 @@
 namespace ppf {
 
 class VoxelMap;
+class PlanePatchMap;
 
 // One point-to-plane residual row: r = n_world . (T_world_lidar * point_lidar) + offset.
 struct PointPlaneRow {
@@ -40,6 +41,10 @@ struct ScanFrame {
   Eigen::Isometry3d T_world_lidar_predicted = Eigen::Isometry3d::Identity();  // IMU prediction
   Eigen::Isometry3d T_imu_lidar = Eigen::Isometry3d::Identity();
   const VoxelMap* map = nullptr;            // the kNN map before this scan's insertion
+  // kPpf: the skeleton's surfaces (the kNN map holds the scattered points only). Set only for the
+  // scan-alone probes (hypothesis_search.hpp), where a point the kNN map does not cover meets
+  // the nearest patch of its cell; the IEKF's providers do not read it.
+  const PlanePatchMap* patches = nullptr;
   // Points farther than this from the LiDAR give no residual (0 = all do); they still enter the
   // map, to give residuals once the sensor is nearer (IekfOptions::residual_max_range).
   double residual_max_range = 0.0;

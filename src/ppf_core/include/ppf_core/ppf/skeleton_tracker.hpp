@@ -31,8 +31,10 @@ class SkeletonTracker {
 
   // Set frame->labels (pre-filled with kScattered) without resizing points_lidar.
   void Split(ScanFrame* frame);
-  // After the update, with the converged pose: this scan's planes to the world.
-  void Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar);
+  // After the update, with the converged pose: this scan's planes to the world (the window), and
+  // its skeleton points into the patch map unless extend_map is false (a pose not yet confirmed).
+  void Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+              bool extend_map = true);
   void Reset();
 
   // The skeleton residual provider reading this tracker's window (the IEKF's second source).

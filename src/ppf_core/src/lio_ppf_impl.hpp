@@ -183,6 +183,7 @@ struct LioPpf::Impl {
   ImuInitializer init;
   VoxelMap map;
   std::shared_ptr<KnnResidualProvider> knn;
+  std::vector<AssociatedPoint> associated;  // scratch of OverruleIfInconsistent
   std::unique_ptr<SkeletonTracker> tracker;  // PPF: kPpf only
   std::deque<ImuSample> imu;
   std::deque<QueuedScan> scans;

@@ -637,6 +637,10 @@ IekfReport LioPpf::Impl::RedeskewGapTurn(const DecodedScan& scan,
 // so a heading correction leaves roll and pitch with the IMU.
 namespace {
 constexpr double kTrustTiltRad = 1.0 * M_PI / 180.0;
+// Fewer kNN points met the map than this (in kPpf, a scan of nearly only skeleton points): their
+// share within the fit gate scatters by 0.05 or more from scan to scan, and a sample of the
+// whole scan is searched instead.
+constexpr size_t kMinAssociated = 100;
 }  // namespace
 
 IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
@@ -647,8 +651,18 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
   if (rep.skipped) return rep;
   const double wide = config.lidar_only.coarse_max_residual;
-  const ScanFrame sample = SampleFrame(frame, co.fit_points);
+  // Every scan: the kNN rows' own associations from the update's last iteration, at the
+  // posterior (no search of the map); their fit and step are what the recent scans' baseline
+  // holds. Only a scan that fails them searches a sample (below), to compare guesses on it.
+  auto associated_at = [&](const NavState& s, PoseProbe* out) {
+    if (!knn->Associations(&associated)) return false;
+    *out = ProbePoseAssociated(associated, s.T_world_imu() * T_il, config.lidar_only,
+                               config.iekf, wide);
+    return out->score.covered >= kMinAssociated;
+  };
+  ScanFrame sample;
   auto probe_at = [&](const NavState& s) {
+    if (sample.points_lidar.empty()) sample = SampleFrame(frame, co.fit_points);
     return ProbePose(sample, s.T_world_imu() * T_il, config.lidar_only, config.knn, config.iekf,
                      wide);
   };
@@ -662,7 +676,9 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
     const double pos = p.step_pos.norm();
     return pos > co.max_step_pos && pos > usual_pos;
   };
-  const PoseProbe probe = probe_at(state);
+  PoseProbe probe;
+  const bool associated_probe = associated_at(state, &probe);
+  if (!associated_probe) probe = probe_at(state);
   const double fit = probe.score.fit;
   r->fit = fit;
   r->disagreement_rot_deg = probe.step_rot.norm() * 180.0 / M_PI;
@@ -686,6 +702,9 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
     return rep;
   }
 
+  // The guesses are compared on a sample of the whole scan, searched at each pose.
+  const PoseProbe sampled = associated_probe ? probe_at(state) : probe;
+
   // Guesses: the update's pose, it moved by the scan's own step, the prediction, and the update's
   // pose turned about the vertical (the map frame's gravity) through the sensor.
   const Eigen::Isometry3d T_post = state.T_world_imu() * T_il;
@@ -697,7 +716,7 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   };
   std::vector<MotionHypothesis> h;
   h.push_back({"update", T_post});
-  h.push_back({"scan step", about_sensor(probe.step_rot, probe.step_pos)});
+  h.push_back({"scan step", about_sensor(sampled.step_rot, sampled.step_pos)});
   h.push_back({"prediction", predicted.T_world_imu() * T_il});
   const Eigen::Vector3d up = -state.gravity_world.normalized();
   const double a = co.turn_deg * M_PI / 180.0;
@@ -750,7 +769,9 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   const IekfReport rep2 = IekfUpdate(iekf, T_il, providers, &s);
   const PoseProbe probe2 = probe_at(s);
   const double fit2 = probe2.score.fit;
-  const bool better = fit2 >= fit + co.min_gain || (fit2 >= fit && too_far(probe) && !too_far(probe2));
+  const double fit1 = sampled.score.fit;
+  const bool better = fit2 >= fit1 + co.min_gain ||
+                      (fit2 >= fit1 && too_far(sampled) && !too_far(probe2));
   if (rep2.skipped || !better) {
     // Nothing fits clearly better: the update's pose stands, and the status says it may be off.
     why << "; no guess does better (best " << c.name << ", fit " << fit2 << "): pose kept";
@@ -769,7 +790,13 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
       << " m (guess " << c.name << ", fit " << fit2 << ")";
   Append(&r->reason, why.str());
   Log(LogLevel::kWarn, why.str());
-  remember(fit2, probe2);
+  // The baseline holds what every scan measures: the associations of the update just run.
+  PoseProbe after;
+  if (associated_probe && associated_at(s, &after)) {
+    remember(after.score.fit, after);
+  } else {
+    remember(fit2, probe2);
+  }
   return rep2;
 }
 

@@ -99,8 +99,9 @@ struct LidarOnlyOptions {
 // laser_point_std) and gates them narrowly, so that shared row errors cannot tilt the world: that
 // also leaves it no say over a few degrees or decimetres that the IMU got wrong without knowing
 // (a gyro saturated on a bump, a sample lost in a turn, a slipping mount, a bridged gap). So each
-// LIO scan's posterior is scored as the LiDAR-only guesses are (ScoreFit); when it fits the map
-// far worse than the recent scans did, guesses around it are aligned coarsely
+// LIO scan's posterior is scored as the LiDAR-only guesses are (ScoreFit, here from the kNN rows'
+// own neighbours of the update's last iteration: ProbePoseAssociated); when it fits the map far
+// worse than the recent scans did, guesses around it are aligned coarsely
 // (hypothesis_search.hpp), and a clearly better one re-anchors the prediction: pose moved, the
 // velocity turned with it, and the covariance widened by the size of the correction along its
 // own direction (a pure heading correction leaves the IMU's roll and pitch in charge). The
@@ -109,7 +110,9 @@ struct ConsistencyOptions {
   bool check = true;
   // A posterior fitting below this share of the median fit of the last scans is searched again.
   double fit_ratio = 0.7;
-  int fit_points = 1000;  // sample of the downsampled scan that is scored
+  // Sample of the downsampled scan searched to compare the guesses (and to score a scan whose
+  // kNN rows met the map with fewer than 100 points).
+  int fit_points = 1000;
   // ... or the scan alone (ProbePose: one step of the rows within lidar_only.coarse_max_residual,
   // no prior) would still move the posterior's position farther than this. The narrow gates hide
   // a step along the way from the fit: most points lie on surfaces parallel to it.

@@ -53,6 +53,53 @@ NavState StateAt(const Eigen::Isometry3d& T_world_lidar, const Eigen::Isometry3d
 
 namespace {
 
+// The score and the step from the accumulated rows (n: the points probed, of which `covered`
+// met the map and `inliers` lie within the fit gate).
+template <int N>
+void FinishProbe(long n, long covered, long inliers, long rows, double dt2,
+                 const Eigen::Matrix<double, N, N>& JtJ, const Eigen::Matrix<double, N, 1>& Jtr,
+                 const IekfOptions& iekf, PoseProbe* out) {
+  using MatN = Eigen::Matrix<double, N, N>;
+  using VecN = Eigen::Matrix<double, N, 1>;
+  PoseProbe& probe = *out;
+  probe.score.inliers = static_cast<size_t>(inliers);
+  probe.score.covered = static_cast<size_t>(covered);
+  // Too few covered points say nothing (a pose in empty space); 5 % of the scan at least.
+  if (covered > 0 && static_cast<double>(covered) >= 0.05 * static_cast<double>(n)) {
+    probe.score.fit = static_cast<double>(inliers) / static_cast<double>(covered);
+  }
+  probe.rows = static_cast<size_t>(rows);
+  if (rows < N) return;
+  // Only along the directions the rows pin (the IEKF's thresholds): in a corridor the scan says
+  // nothing about the position along it, and a pseudo-step there would be noise.
+  MatN proj = MatN::Zero();
+  auto strong = [](const Eigen::Matrix3d& info, double min_eig) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(info);
+    Eigen::Matrix3d p = Eigen::Matrix3d::Zero();
+    for (int i = 0; i < 3; ++i) {
+      if (es.eigenvalues()(i) >= min_eig) p += es.eigenvectors().col(i) * es.eigenvectors().col(i).transpose();
+    }
+    return p;
+  };
+  proj.template block<3, 3>(0, 0) =
+      strong(JtJ.template block<3, 3>(0, 0), iekf.degeneracy_min_eig_rotation);
+  proj.template block<3, 3>(3, 3) =
+      strong(JtJ.template block<3, 3>(3, 3), iekf.degeneracy_min_eig_translation);
+  if constexpr (N == 9) {
+    // A velocity moves a point by its time from the scan end: the translation's threshold,
+    // scaled by the rows' mean squared time, is the same evidence per row.
+    proj.template block<3, 3>(6, 6) = strong(JtJ.template block<3, 3>(6, 6),
+                                             iekf.degeneracy_min_eig_translation * dt2 / rows);
+  }
+  const MatN A = proj * JtJ * proj + (MatN::Identity() - proj);
+  const VecN step = -A.ldlt().solve(proj * Jtr);
+  if (step.allFinite()) {
+    probe.step_rot = step.template head<3>();
+    probe.step_pos = step.template segment<3>(3);
+    if constexpr (N == 9) probe.step_vel = step.template tail<3>();
+  }
+}
+
 // The rows of ProbePose, and with point times (dt: seconds from the scan end, per frame point)
 // three more columns: the world velocity over the scan, which moves each point by dt times it.
 template <int N>
@@ -118,42 +165,7 @@ PoseProbe Probe(const ScanFrame& frame, const std::vector<float>* dt,
       Jtr += Jtr_t;
     }
   }
-  probe.score.inliers = static_cast<size_t>(inliers);
-  probe.score.covered = static_cast<size_t>(covered);
-  // Too few covered points say nothing (a pose in empty space); 5 % of the scan at least.
-  if (covered > 0 && static_cast<double>(covered) >= 0.05 * static_cast<double>(n)) {
-    probe.score.fit = static_cast<double>(inliers) / static_cast<double>(covered);
-  }
-  probe.rows = static_cast<size_t>(rows);
-  if (rows < N) return probe;
-  // Only along the directions the rows pin (the IEKF's thresholds): in a corridor the scan says
-  // nothing about the position along it, and a pseudo-step there would be noise.
-  MatN proj = MatN::Zero();
-  auto strong = [](const Eigen::Matrix3d& info, double min_eig) {
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(info);
-    Eigen::Matrix3d p = Eigen::Matrix3d::Zero();
-    for (int i = 0; i < 3; ++i) {
-      if (es.eigenvalues()(i) >= min_eig) p += es.eigenvectors().col(i) * es.eigenvectors().col(i).transpose();
-    }
-    return p;
-  };
-  proj.template block<3, 3>(0, 0) =
-      strong(JtJ.template block<3, 3>(0, 0), iekf.degeneracy_min_eig_rotation);
-  proj.template block<3, 3>(3, 3) =
-      strong(JtJ.template block<3, 3>(3, 3), iekf.degeneracy_min_eig_translation);
-  if constexpr (N == 9) {
-    // A velocity moves a point by its time from the scan end: the translation's threshold,
-    // scaled by the rows' mean squared time, is the same evidence per row.
-    proj.template block<3, 3>(6, 6) = strong(JtJ.template block<3, 3>(6, 6),
-                                             iekf.degeneracy_min_eig_translation * dt2 / rows);
-  }
-  const MatN A = proj * JtJ * proj + (MatN::Identity() - proj);
-  const VecN step = -A.ldlt().solve(proj * Jtr);
-  if (step.allFinite()) {
-    probe.step_rot = step.template head<3>();
-    probe.step_pos = step.template segment<3>(3);
-    if constexpr (N == 9) probe.step_vel = step.template tail<3>();
-  }
+  FinishProbe<N>(n, covered, inliers, rows, dt2, JtJ, Jtr, iekf, &probe);
   return probe;
 }
 
@@ -175,6 +187,35 @@ PoseProbe ProbePoseAndVelocity(const ScanFrame& frame, const std::vector<float>&
   const Eigen::Vector3d u = fixed_axis.norm() > 0.0 ? fixed_axis.normalized() : fixed_axis;
   const Eigen::Matrix3d space = Eigen::Matrix3d::Identity() - u * u.transpose();
   return Probe<9>(frame, &dt, space, T_world_lidar, options, knn, iekf, wide_gate);
+}
+
+PoseProbe ProbePoseAssociated(const std::vector<AssociatedPoint>& points,
+                              const Eigen::Isometry3d& T_world_lidar,
+                              const LidarOnlyOptions& options, const IekfOptions& iekf,
+                              double wide_gate) {
+  PoseProbe probe;
+  const Eigen::Vector3d c = T_world_lidar.translation();
+  long covered = 0, inliers = 0, rows = 0;
+  Eigen::Matrix<double, 6, 6> JtJ = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> Jtr = Eigen::Matrix<double, 6, 1>::Zero();
+  for (const AssociatedPoint& a : points) {
+    if (!a.covered) continue;
+    ++covered;
+    if (!a.has_plane) continue;
+    const Eigen::Vector3d p = T_world_lidar * a.point_lidar.cast<double>();
+    const double r = a.normal.dot(p) + a.d;
+    if (std::abs(r) < options.fit_gate) ++inliers;
+    if (!(std::abs(r) < wide_gate)) continue;
+    ++rows;
+    Eigen::Matrix<double, 6, 1> j;
+    j.head<3>() = (p - c).cross(a.normal);
+    j.tail<3>() = a.normal;
+    JtJ.noalias() += j * j.transpose();
+    Jtr.noalias() += j * r;
+  }
+  FinishProbe<6>(static_cast<long>(points.size()), covered, inliers, rows, 0.0, JtJ, Jtr, iekf,
+                 &probe);
+  return probe;
 }
 
 FitScore ScoreFit(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,

@@ -121,4 +121,25 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
   }
 }
 
+bool KnnResidualProvider::Associations(std::vector<AssociatedPoint>* out) const {
+  out->clear();
+  if (frame_ == nullptr || fits_.size() != indices_.size()) return false;
+  if (static_cast<size_t>(std::max(3, options_.k)) > kMaxCachedK) return false;
+  out->reserve(indices_.size());
+  for (size_t j = 0; j < indices_.size(); ++j) {
+    const CachedFit& fit = fits_[j];
+    if (!fit.searched) return false;  // no search since BeginScan
+    AssociatedPoint a;
+    a.point_lidar = frame_->points_lidar[indices_[j]];
+    a.covered = fit.found;
+    // A plane is cached only for the neighbours it was fitted to, which a search that found
+    // fewer than k did not replace: it counts only when this search found k.
+    a.has_plane = fit.found && fit.ok;
+    a.normal = fit.normal;
+    a.d = fit.d;
+    out->push_back(a);
+  }
+  return true;
+}
+
 }  // namespace ppf

@@ -192,5 +192,39 @@ TEST(ProbePose, PointsTheKnnMapLacksMeetTheSkeletonPatches) {
   EXPECT_EQ(SampleFrame(f.frame, 100).patches, &patches);
 }
 
+// The consistency check's probe from the IEKF's own kNN search (KnnResidualProvider::Associations)
+// says what a fresh search at the same pose says: the same points met the map, the same fit, the
+// same step; before a search since BeginScan there is nothing to reuse.
+TEST(ProbePoseAssociated, SaysWhatAFreshSearchAtThatPoseSays) {
+  RoomFixture f;
+  const Eigen::Isometry3d truth = Pose(Eigen::Vector3d(0.4, 0.1, 0.05), Eigen::Vector3d(0, 0, 0.1));
+  f.Build(truth);
+  const Eigen::Isometry3d off =
+      Pose(Eigen::Vector3d(0.45, 0.05, 0.08), Eigen::Vector3d(0.005, 0.0, 0.12));
+  KnnOptions knn;
+  knn.max_residual = 1.0;
+  KnnResidualProvider provider(knn);
+  provider.BeginScan(f.frame);
+  std::vector<AssociatedPoint> associated;
+  EXPECT_FALSE(provider.Associations(&associated));
+  std::vector<PointPlaneRow> rows;
+  provider.ComputeRows(off, &rows);
+  ASSERT_TRUE(provider.Associations(&associated));
+  ASSERT_EQ(associated.size(), f.frame.points_lidar.size());
+
+  const PoseProbe reused =
+      ProbePoseAssociated(associated, off, LidarOnlyOptions(), IekfOptions(), 1.0);
+  const PoseProbe fresh = ProbePose(f.frame, off, LidarOnlyOptions(), knn, IekfOptions(), 1.0);
+  EXPECT_EQ(reused.score.covered, fresh.score.covered);
+  EXPECT_EQ(reused.score.inliers, fresh.score.inliers);
+  EXPECT_EQ(reused.rows, fresh.rows);
+  EXPECT_GT(reused.rows, 1000u);
+  EXPECT_LT((reused.step_pos - fresh.step_pos).norm(), 1e-6);
+  EXPECT_LT((reused.step_rot - fresh.step_rot).norm(), 1e-6);
+  // The step is the scan's own: toward the truth.
+  EXPECT_LT((off.translation() + reused.step_pos - truth.translation()).norm(),
+            0.5 * (off.translation() - truth.translation()).norm());
+}
+
 }  // namespace
 }  // namespace ppf

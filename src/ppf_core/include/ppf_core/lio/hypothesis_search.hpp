@@ -83,6 +83,14 @@ PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lid
                     const LidarOnlyOptions& options, const KnnOptions& knn,
                     const IekfOptions& iekf, double wide_gate);
 
+// ProbePose from associations already made (KnnResidualProvider::Associations: the IEKF's last
+// kNN search of the scan), without searching the map again: each point with whether it met the
+// map (k neighbours) and the plane they fitted. The score counts these points, not a sample.
+PoseProbe ProbePoseAssociated(const std::vector<AssociatedPoint>& points,
+                              const Eigen::Isometry3d& T_world_lidar,
+                              const LidarOnlyOptions& options, const IekfOptions& iekf,
+                              double wide_gate);
+
 // ProbePose with the velocity the scan was taken at: dt holds each frame point's time from the
 // scan end (seconds, <= 0), and a world velocity v moves the point by v * dt. The de-skew's
 // smear is what observes it: a scan de-skewed with the wrong speed bends the walls it saw early

@@ -19,6 +19,15 @@ namespace ppf {
 bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double threshold, Eigen::Vector3d* n,
               double* d, double min_spread = 0.0);
 
+// A point of the scan with what the last kNN search found for it (Associations).
+struct AssociatedPoint {
+  Eigen::Vector3f point_lidar = Eigen::Vector3f::Zero();
+  bool covered = false;    // k neighbours within reach
+  bool has_plane = false;  // ... and they fitted a plane (normal, d: n . x + d = 0, world)
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  double d = 0.0;
+};
+
 class KnnResidualProvider : public ResidualProvider {
  public:
   explicit KnnResidualProvider(const KnnOptions& options = KnnOptions()) : options_(options) {}
@@ -26,6 +35,9 @@ class KnnResidualProvider : public ResidualProvider {
   void BeginScan(const ScanFrame& frame) override;
   void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
                    std::vector<PointPlaneRow>* rows) override;
+  // What the last ComputeRows of this scan found for each of its points (the scattered points
+  // within reach): false if nothing was searched since BeginScan, or k is too large to keep.
+  bool Associations(std::vector<AssociatedPoint>* out) const;
 
  private:
   KnnOptions options_;

@@ -532,6 +532,11 @@ IekfReport LioPpf::Impl::Register(const DecodedScan& scan, const std::vector<Tim
                                   double t_end, bool lidar, Eigen::Isometry3d* T_world_lidar_out,
                                   ScanResult* r) {
   std::vector<ResidualProvider*> providers;
+  // The kNN rows keep their neighbours across iterations (knn.search_again_distance) only when
+  // the prediction is that near: the update moves the pose by about the prior's uncertainty, which
+  // after a gap, a loss or a re-localization is decimetres for a few scans.
+  const double pos_std = std::sqrt(state.P.block<3, 3>(kPos, kPos).diagonal().maxCoeff());
+  knn->SetKeepNeighbours(!lidar && pos_std < config.knn.search_again_distance);
   providers.push_back(knn.get());
   const bool skeleton = tracker != nullptr;
   if (skeleton) providers.push_back(tracker->residual_provider().get());  // PPF: skeleton rows

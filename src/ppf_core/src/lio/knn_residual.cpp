@@ -59,7 +59,7 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
   const bool cache = k <= kMaxCachedK && fits_.size() == indices_.size();
   const float keep2 = static_cast<float>(options_.search_again_distance *
                                          options_.search_again_distance);
-  const bool keep = cache && options_.search_again_distance > 0.0;
+  const bool keep = cache && keep_neighbours_ && options_.search_again_distance > 0.0;
 #ifdef _OPENMP
   const int threads = options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
 #endif

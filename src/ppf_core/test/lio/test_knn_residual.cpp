@@ -108,5 +108,35 @@ TEST(KnnResidual, KeepsNeighboursWhileThePointStaysNearItsSearch) {
   EXPECT_FALSE(same(again, first));
 }
 
+// SetKeepNeighbours(false) (a scan registered from LiDAR-only guesses, or a prediction less
+// certain than search_again_distance): every iteration searches again, whatever the distance.
+TEST(KnnResidual, SearchesEveryIterationWhenKeepingIsOff) {
+  test::KnnRoomFixture f;
+  test::BuildKnnRoom(test::MakeRoomScene(), &f);
+  KnnOptions options;
+  options.search_again_distance = 0.1;
+  KnnResidualProvider provider(options);
+  provider.SetKeepNeighbours(false);
+  Eigen::Isometry3d near = Eigen::Isometry3d::Identity();
+  near.translation() = Eigen::Vector3d(0.06, -0.04, 0.02);  // 0.075 m: kept if keeping were on
+  std::vector<PointPlaneRow> first, second, fresh_rows;
+  provider.BeginScan(f.frame);
+  provider.ComputeRows(Eigen::Isometry3d::Identity(), &first);
+  provider.ComputeRows(near, &second);
+  KnnResidualProvider fresh;
+  fresh.BeginScan(f.frame);
+  fresh.ComputeRows(near, &fresh_rows);
+  ASSERT_GT(fresh_rows.size(), 100u);
+  ASSERT_EQ(second.size(), fresh_rows.size());
+  size_t differs_from_first = second.size() != first.size() ? 1 : 0;
+  for (size_t i = 0; i < second.size(); ++i) {
+    EXPECT_TRUE(second[i].point_lidar == fresh_rows[i].point_lidar);
+    EXPECT_TRUE(second[i].normal_world == fresh_rows[i].normal_world);
+    EXPECT_EQ(second[i].offset, fresh_rows[i].offset);
+    if (i < first.size() && !(second[i].normal_world == first[i].normal_world)) ++differs_from_first;
+  }
+  EXPECT_GT(differs_from_first, 0u);  // the kept planes would have been the first search's
+}
+
 }  // namespace
 }  // namespace ppf

@@ -38,9 +38,15 @@ class KnnResidualProvider : public ResidualProvider {
   // What the last ComputeRows of this scan found for each of its points (the scattered points
   // within reach): false if nothing was searched since BeginScan, or k is too large to keep.
   bool Associations(std::vector<AssociatedPoint>* out) const;
+  // Whether KnnOptions::search_again_distance applies to the scans from now on. Its premise is a
+  // prediction near the pose, so that later iterations move a point by millimetres; a scan
+  // registered from LiDAR-only guesses (no IMU, or re-localizing after a loss) moves by more, and
+  // a neighbour set kept from its first iterations would hold it where they were made.
+  void SetKeepNeighbours(bool keep) { keep_neighbours_ = keep; }
 
  private:
   KnnOptions options_;
+  bool keep_neighbours_ = true;
   const ScanFrame* frame_ = nullptr;
   std::vector<size_t> indices_;  // kScattered points of the frame
   // Per-call buffers kept between the iterations and scans: one slot per indexed point.

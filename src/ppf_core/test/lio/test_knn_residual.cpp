@@ -61,23 +61,51 @@ TEST(KnnResidual, FarPointsGiveNoRowsBeyondResidualMaxRange) {
   for (const PointPlaneRow& r : near) EXPECT_LE(r.point_lidar.norm(), limit);
 }
 
+// The rows of two ComputeRows calls are the same: same points, planes and offsets, in order.
+bool SameRows(const std::vector<PointPlaneRow>& a, const std::vector<PointPlaneRow>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!(a[i].point_lidar == b[i].point_lidar) || !(a[i].normal_world == b[i].normal_world) ||
+        a[i].offset != b[i].offset) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// The room scan with search_again_distance 0.1 m, and a pose 0.075 m from the identity: within
+// the distance of every point's search there.
+struct KeepCase {
+  test::KnnRoomFixture f;
+  KnnOptions options;
+  Eigen::Isometry3d near = Eigen::Isometry3d::Identity();
+  KeepCase() {
+    test::BuildKnnRoom(test::MakeRoomScene(), &f);
+    options.search_again_distance = 0.1;
+    near.translation() = Eigen::Vector3d(0.06, -0.04, 0.02);
+  }
+  // What a fresh search at T gives (a provider with nothing kept).
+  std::vector<PointPlaneRow> Fresh(const Eigen::Isometry3d& T) const {
+    KnnResidualProvider fresh;
+    std::vector<PointPlaneRow> rows;
+    fresh.BeginScan(f.frame);
+    fresh.ComputeRows(T, &rows);
+    return rows;
+  }
+};
+
 // search_again_distance: within one scan a point that moved less than it since its search keeps
 // that search's plane (its row is still evaluated at the new pose); one that moved farther
 // searches again and gets what a fresh search gives.
 TEST(KnnResidual, KeepsNeighboursWhileThePointStaysNearItsSearch) {
-  test::KnnRoomFixture f;
-  test::BuildKnnRoom(test::MakeRoomScene(), &f);
-  KnnOptions options;
-  options.search_again_distance = 0.1;
-  KnnResidualProvider keep(options);
-  Eigen::Isometry3d near = Eigen::Isometry3d::Identity();
-  near.translation() = Eigen::Vector3d(0.06, -0.04, 0.02);  // 0.075 m
+  KeepCase c;
+  KnnResidualProvider keep(c.options);
   Eigen::Isometry3d far = Eigen::Isometry3d::Identity();
   far.translation() = Eigen::Vector3d(0.3, 0.0, 0.0);
   std::vector<PointPlaneRow> first, kept, again;
-  keep.BeginScan(f.frame);
+  keep.BeginScan(c.f.frame);
   keep.ComputeRows(Eigen::Isometry3d::Identity(), &first);
-  keep.ComputeRows(near, &kept);
+  keep.ComputeRows(c.near, &kept);
   ASSERT_GT(first.size(), 100u);
   ASSERT_EQ(kept.size(), first.size());
   for (size_t i = 0; i < kept.size(); ++i) {
@@ -86,56 +114,26 @@ TEST(KnnResidual, KeepsNeighboursWhileThePointStaysNearItsSearch) {
     EXPECT_EQ(kept[i].offset, first[i].offset);
   }
   // A new search from there finds other neighbours for some points (noisy map): other planes.
-  auto same = [](const std::vector<PointPlaneRow>& a, const std::vector<PointPlaneRow>& b) {
-    if (a.size() != b.size()) return false;
-    for (size_t i = 0; i < a.size(); ++i) {
-      if (!(a[i].point_lidar == b[i].point_lidar) || !(a[i].normal_world == b[i].normal_world) ||
-          a[i].offset != b[i].offset) {
-        return false;
-      }
-    }
-    return true;
-  };
-  KnnResidualProvider fresh;
-  std::vector<PointPlaneRow> searched_near, searched_far;
-  fresh.BeginScan(f.frame);
-  fresh.ComputeRows(near, &searched_near);
-  EXPECT_FALSE(same(searched_near, first));
+  EXPECT_FALSE(SameRows(c.Fresh(c.near), first));
   keep.ComputeRows(far, &again);
-  fresh.BeginScan(f.frame);
-  fresh.ComputeRows(far, &searched_far);
-  EXPECT_TRUE(same(again, searched_far));
-  EXPECT_FALSE(same(again, first));
+  EXPECT_TRUE(SameRows(again, c.Fresh(far)));
+  EXPECT_FALSE(SameRows(again, first));
 }
 
 // SetKeepNeighbours(false) (a scan registered from LiDAR-only guesses, or a prediction less
 // certain than search_again_distance): every iteration searches again, whatever the distance.
 TEST(KnnResidual, SearchesEveryIterationWhenKeepingIsOff) {
-  test::KnnRoomFixture f;
-  test::BuildKnnRoom(test::MakeRoomScene(), &f);
-  KnnOptions options;
-  options.search_again_distance = 0.1;
-  KnnResidualProvider provider(options);
+  KeepCase c;
+  KnnResidualProvider provider(c.options);
   provider.SetKeepNeighbours(false);
-  Eigen::Isometry3d near = Eigen::Isometry3d::Identity();
-  near.translation() = Eigen::Vector3d(0.06, -0.04, 0.02);  // 0.075 m: kept if keeping were on
-  std::vector<PointPlaneRow> first, second, fresh_rows;
-  provider.BeginScan(f.frame);
+  std::vector<PointPlaneRow> first, second;
+  provider.BeginScan(c.f.frame);
   provider.ComputeRows(Eigen::Isometry3d::Identity(), &first);
-  provider.ComputeRows(near, &second);
-  KnnResidualProvider fresh;
-  fresh.BeginScan(f.frame);
-  fresh.ComputeRows(near, &fresh_rows);
-  ASSERT_GT(fresh_rows.size(), 100u);
-  ASSERT_EQ(second.size(), fresh_rows.size());
-  size_t differs_from_first = second.size() != first.size() ? 1 : 0;
-  for (size_t i = 0; i < second.size(); ++i) {
-    EXPECT_TRUE(second[i].point_lidar == fresh_rows[i].point_lidar);
-    EXPECT_TRUE(second[i].normal_world == fresh_rows[i].normal_world);
-    EXPECT_EQ(second[i].offset, fresh_rows[i].offset);
-    if (i < first.size() && !(second[i].normal_world == first[i].normal_world)) ++differs_from_first;
-  }
-  EXPECT_GT(differs_from_first, 0u);  // the kept planes would have been the first search's
+  provider.ComputeRows(c.near, &second);  // kept if keeping were on (previous test)
+  const std::vector<PointPlaneRow> fresh = c.Fresh(c.near);
+  ASSERT_GT(fresh.size(), 100u);
+  EXPECT_TRUE(SameRows(second, fresh));
+  EXPECT_FALSE(SameRows(second, first));  // the kept planes would have been the first search's
 }
 
 }  // namespace

@@ -127,8 +127,8 @@ struct LioPpf::Impl {
                       bool lidar, Eigen::Isometry3d* T_world_lidar_out, ScanResult* r);
   IekfReport RedeskewGapTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                              double t_end, const NavState& predicted, const IekfOptions& iekf,
-                             const std::vector<ResidualProvider*>& providers,
-                             const IekfReport& rep, ScanResult* r);
+                             const std::vector<ResidualProvider*>& providers, const IekfReport& rep,
+                             ScanResult* r);
   void PrepareFrame(double t_end);
   void CountLabels(ScanResult* r) const;
   IekfReport OverruleIfInconsistent(const NavState& predicted, const IekfOptions& iekf,
@@ -166,6 +166,8 @@ struct LioPpf::Impl {
   void AddAlongTrackGuesses(const Eigen::Isometry3d& T_world_lidar, const Eigen::Vector3d& v_world,
                             double dt, std::vector<MotionHypothesis>* h) const;
   void RedeskewLidarOnly(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end);
+  PoseTrace GyroTraceToEnd(const DecodedScan& scan, const Eigen::Isometry3d& T_end,
+                           const Eigen::Vector3d& v_world, double t_end) const;
   void EstimateScanVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                             double t_end);
   ScanFrame ScanAloneSample();
@@ -183,9 +185,10 @@ struct LioPpf::Impl {
   ImuInitializer init;
   VoxelMap map;
   std::shared_ptr<KnnResidualProvider> knn;
-  std::vector<AssociatedPoint> associated;  // scratch of OverruleIfInconsistent
+  std::vector<AssociatedPoint> associated;   // scratch of OverruleIfInconsistent
   std::unique_ptr<SkeletonTracker> tracker;  // PPF: kPpf only
   std::deque<ImuSample> imu;
+  std::vector<ImuSample> sweep_imu;  // a re-localized scan's samples, before the trim
   std::deque<QueuedScan> scans;
   std::vector<ScanResult> pending;
   struct BridgedGap {
@@ -226,13 +229,13 @@ struct LioPpf::Impl {
   std::vector<MovingStartPose> moving_poses;  // IMU poses of the window's registered scans
   int moving_scans = 0;  // registered since the window (re)started, warm-up included
   static constexpr int kMovingWarmupScans = 5;
-  double acc_scale = 1.0;          // of the initialization in use
-  ConstantVelocityModel motion;    // LiDAR-only prediction (IMU frame poses)
-  std::deque<double> recent_fits;  // LiDAR-only: fits of the last scans (AlignGuesses)
-  std::deque<double> lio_fits;     // LIO: posterior fits of the last scans (consistency check)
+  double acc_scale = 1.0;            // of the initialization in use
+  ConstantVelocityModel motion;      // LiDAR-only prediction (IMU frame poses)
+  std::deque<double> recent_fits;    // LiDAR-only: fits of the last scans (AlignGuesses)
+  std::deque<double> lio_fits;       // LIO: posterior fits of the last scans (consistency check)
   std::deque<double> lio_steps_pos;  // ... and the scan-alone steps' translation (m)
   std::deque<double> lio_steps_rot;  // ... and rotation (rad)
-  bool contradicted = false;       // this scan's pose fits the map poorly and no guess did better
+  bool contradicted = false;         // this scan's pose fits the map poorly and no guess did better
   size_t ignored_imu = 0;
   // IMU loss (docs/behaviour.md, "IMU loss"): LIO running, but scans are registered LiDAR-only
   // until IMU samples are back and cover the next scan; then propagation re-anchors at the last
@@ -248,7 +251,7 @@ struct LioPpf::Impl {
   // with it, not with the chord over the gap.
   bool has_scan_velocity = false;
   Eigen::Vector3d scan_velocity_world = Eigen::Vector3d::Zero();
-  double fallback_dt = 0.0;     // interval of the last LiDAR-only scan (velocity at resume)
+  double fallback_dt = 0.0;  // interval of the last LiDAR-only scan (velocity at resume)
   StateCov P_before_loss = StateCov::Identity();  // biases' and gravity's, kept for the resume
   // A scan may resume LIO if the first IMU sample back is at most this much after its start: the
   // propagation holds that sample for the bit before it (a few IMU periods).
@@ -264,9 +267,9 @@ struct LioPpf::Impl {
   struct ImuConflict {
     bool active = false;
     bool has_prev = false;
-    ImuSample prev;                  // the settled sample before the stamp in conflict
-    std::vector<ImuSample> copies;   // in arrival order
-    std::vector<ImuSample> next;     // the copies of the stamp after it
+    ImuSample prev;                 // the settled sample before the stamp in conflict
+    std::vector<ImuSample> copies;  // in arrival order
+    std::vector<ImuSample> next;    // the copies of the stamp after it
   } imu_conflict;
   LogLimiter imu_conflict_log{1.0};
   LogLimiter imu_gap_log{1.0};
@@ -280,8 +283,8 @@ struct LioPpf::Impl {
   static constexpr double kClockOffsetS = 1.0;
   static constexpr int kClockOffsetScans = 10;
   bool clock_offset = false;
-  double clock_offset_s = 0.0;     // the last offset measured (scan end - newest IMU sample)
-  int clock_offset_votes = 0;      // consecutive scans contradicting the current judgement
+  double clock_offset_s = 0.0;  // the last offset measured (scan end - newest IMU sample)
+  int clock_offset_votes = 0;   // consecutive scans contradicting the current judgement
   double imu_arrived_stamp = -std::numeric_limits<double>::infinity();  // used or not
   size_t imu_arrived_since_scan = 0;
   int scans_since_prune = 0;

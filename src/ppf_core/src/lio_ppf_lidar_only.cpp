@@ -6,6 +6,7 @@
 #include <deque>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lio_ppf_impl.hpp"
@@ -249,18 +250,65 @@ void LioPpf::Impl::RedeskewLidarOnly(const DecodedScan& scan, const std::vector<
   SetLidarOnlyPrior();
 }
 
+// The turn inside a re-localized sweep: where both streams resumed together the gyro's samples
+// cover the sweep, and they measure its roll and pitch rates, which the constant-velocity model
+// (the rates from before the gap, about the vertical only in its extrapolation) does not know: a
+// car's body pitches and rolls on its suspension, and a sweep de-skewed with the wrong rates is
+// bent, which tilts the pose the map gives it. The translation is the straight line at v through
+// the pose at t_end. Empty when the samples do not cover the sweep (an IMU loss's scans).
+PoseTrace LioPpf::Impl::GyroTraceToEnd(const DecodedScan& scan, const Eigen::Isometry3d& T_end,
+                                       const Eigen::Vector3d& v_world, double t_end) const {
+  constexpr double kCoverSlackS = 0.01;
+  PoseTrace trace;
+  if (!imu_back || sweep_imu.empty() || imu_back_stamp_s > scan.t_begin + kCoverSlackS ||
+      last_imu_stamp < t_end - kCoverSlackS) {
+    return trace;
+  }
+  // Only the samples after the gap: one from before it would be interpolated across it.
+  std::vector<ImuSample> samples;
+  for (const ImuSample& s : sweep_imu) {
+    if (s.stamp_s >= imu_back_stamp_s) samples.push_back(s);
+  }
+  std::vector<double> times{scan.t_begin};
+  for (const ImuSample& s : samples) {
+    if (s.stamp_s > scan.t_begin && s.stamp_s < t_end) times.push_back(s.stamp_s);
+  }
+  times.push_back(t_end);
+  const size_t n = times.size();
+  trace.knots.resize(n);
+  ImuKnot& last = trace.knots.back();
+  last.t = t_end;
+  last.R = T_end.linear();
+  last.omega = InterpolateImu(samples, t_end).angular_velocity - state.gyro_bias;
+  // Integrated backwards from the pose at t_end, midpoint rate per segment (as PropagateImu).
+  for (size_t i = n - 1; i-- > 0;) {
+    ImuKnot& k = trace.knots[i];
+    k.t = times[i];
+    k.omega = 0.5 * (InterpolateImu(samples, times[i]).angular_velocity +
+                     InterpolateImu(samples, times[i + 1]).angular_velocity) -
+              state.gyro_bias;
+    k.R = NormalizeRotation(trace.knots[i + 1].R * SO3Exp(-k.omega * (times[i + 1] - times[i])));
+  }
+  for (ImuKnot& k : trace.knots) {
+    k.p = T_end.translation() + v_world * (k.t - t_end);
+    k.v = v_world;
+  }
+  return trace;
+}
+
 // A re-localization after a gap: the scan was de-skewed with the speed the filter had before
 // the gap, and a vehicle that sped up or slowed down meanwhile smears the scan by the difference
 // over one sweep, which shifts and tilts the pose the map then takes. The scan alone (Gauss-Newton
 // steps on the map, no prior) measures its pose and its velocity together, from how the early
-// points fit against the late ones; the frame is de-skewed again with that velocity, and LIO
-// resumes with it (ResumeLio) instead of the chord over the gap. The wide gate finds the
+// points fit against the late ones; the frame is de-skewed again with that velocity (and the
+// gyro's turn, GyroTraceToEnd), and LIO resumes with it (ResumeLio) instead of the chord over
+// the gap. The wide gate finds the
 // alignment; it also keeps rows paired with the wrong surface, which pull the velocity back
 // toward the one the scan was de-skewed with, so the gate then narrows step by step to twice the
 // fit gate (coarse to fine, as in ICP). In kPpf the sample also meets the skeleton's patches:
 // the walls and the ground are not in its kNN map.
-void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan,
-                                        const std::vector<TimedPoint>& pts, double t_end) {
+void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
+                                        double t_end) {
   has_scan_velocity = false;
   if (!(scan.has_time_field || scan.times_estimated)) return;  // nothing to observe it by
   if (pts.size() != frame.points_lidar.size() || pts.empty()) return;
@@ -321,7 +369,16 @@ void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan,
   knot.R = state.R_world_imu;
   knot.p = state.p_world_imu;
   knot.v = v;
-  trace.knots.front() = knot;
+  // The final de-skew takes the gyro's turn where its samples cover the sweep. The velocity
+  // above is still solved on the sweep bent by the model's turn: solved on the gyro's, its
+  // speed scattered more over the drives measured (docs/decisions.md, "The re-localized sweep's
+  // turn from the gyro").
+  PoseTrace gyro = GyroTraceToEnd(scan, T_world_imu, v, t_end);
+  if (!gyro.knots.empty()) {
+    trace = std::move(gyro);
+  } else {
+    trace.knots.front() = knot;
+  }
   DeskewToEnd(pts, trace, t_end, T_il, &frame.points_lidar, config.num_threads);
   frame.T_world_lidar_predicted = T;
   SetLidarOnlyPrior();

@@ -56,6 +56,9 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   r.timings.deskew = MsSince(t0);
   last_scan_end = t_end;
   r.stamp_s = t_end;
+  // A re-localized sweep's own gyro samples (GyroTraceToEnd), before they are trimmed below.
+  sweep_imu.clear();
+  if (Relocating() && imu_back) sweep_imu.assign(imu.begin(), imu.end());
   // Keep one sample at or before the state time for the next interpolation (the moving-start
   // initialization keeps all: it preintegrates from its first scan).
   while (!moving_init && imu.size() > 2 && imu[1].stamp_s <= state.stamp_s) imu.pop_front();
@@ -648,8 +651,7 @@ constexpr double kTrustTiltRad = 1.0 * M_PI / 180.0;
 constexpr size_t kMinAssociated = 100;
 }  // namespace
 
-IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
-                                                const IekfOptions& iekf,
+IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const IekfOptions& iekf,
                                                 const std::vector<ResidualProvider*>& providers,
                                                 const IekfReport& rep, ScanResult* r) {
   const ConsistencyOptions& co = config.consistency;
@@ -661,8 +663,8 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   // holds. Only a scan that fails them searches a sample (below), to compare guesses on it.
   auto associated_at = [&](const NavState& s, PoseProbe* out) {
     if (!knn->Associations(&associated)) return false;
-    *out = ProbePoseAssociated(associated, s.T_world_imu() * T_il, config.lidar_only,
-                               config.iekf, wide);
+    *out = ProbePoseAssociated(associated, s.T_world_imu() * T_il, config.lidar_only, config.iekf,
+                               wide);
     return out->score.covered >= kMinAssociated;
   };
   ScanFrame sample;
@@ -775,8 +777,8 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted,
   const PoseProbe probe2 = probe_at(s);
   const double fit2 = probe2.score.fit;
   const double fit1 = sampled.score.fit;
-  const bool better = fit2 >= fit1 + co.min_gain ||
-                      (fit2 >= fit1 && too_far(sampled) && !too_far(probe2));
+  const bool better =
+      fit2 >= fit1 + co.min_gain || (fit2 >= fit1 && too_far(sampled) && !too_far(probe2));
   if (rep2.skipped || !better) {
     // Nothing fits clearly better: the update's pose stands, and the status says it may be off.
     why << "; no guess does better (best " << c.name << ", fit " << fit2 << "): pose kept";
@@ -844,8 +846,8 @@ void LioPpf::Impl::ReportRelocalization(ScanResult* r) {
   relocalized_since_loss = true;
   std::ostringstream os;
   os.precision(3);
-  os << "re-localized after " << fallback_dt << " s without data: " << r->motion_guess
-     << ", fit " << r->fit;
+  os << "re-localized after " << fallback_dt << " s without data: " << r->motion_guess << ", fit "
+     << r->fit;
   if (has_scan_velocity) {
     os << ", speed " << scan_velocity_world.norm() << " m/s from the scan's own smear ("
        << motion.velocity_world().norm() << " before the gap)";

@@ -156,11 +156,12 @@ INSTANTIATE_TEST_SUITE_P(
         // being back. Found again within the full bounds 1 s after, tilt within the full bound;
         // the APE bound is looser than the full one: one sweep pins the speed and the position
         // along the street only together, and the scans after the gap keep some of that error
-        // (docs/decisions.md, "Consistency check"; kPpf was 1.89x with the model's turn).
+        // (docs/decisions.md, "Consistency check"). With the model's turn the kPpf re-localized
+        // scan tilted 0.06 deg above the undisturbed maximum, over the tilt bound.
         Case{"silence3_knn", kUrban, "vlp16", 12, "--silence 6:3", 9, kKnn, Case::kRelocated,
              0.05, 0.05, 1.5},
         Case{"silence3_ppf", kUrban, "vlp16", 12, "--silence 6:3", 9, kPpf, Case::kRelocated,
-             0.05, 0.05, 1.5},
+             0.05, 0.05, 1.8},
         // An IMU gap of 0.5 s in the first turn (14-17 s), bridged by integration, each scan
         // across it widened for its part of the gap and de-skewed again with the turn missed
         // there: in kKnn the turn the scan alone measured before the update, in kPpf (its kNN

@@ -227,8 +227,11 @@ struct KnnOptions {
   double max_residual = 0.5;
   // Metres; > 0: within one scan a point keeps the neighbours (and their plane) of its last search
   // while its world position stays within this distance of where that search was made; the row
-  // itself is always evaluated at the current pose. 0: every iteration searches again.
-  double search_again_distance = 0.0;
+  // itself is always evaluated at the current pose. 0: every iteration searches again. Applied
+  // only to a scan whose prediction is that near (LioPpf keeps it off for LiDAR-only scans and
+  // while the prior's position std is above it): the later iterations of such a scan move its
+  // points by millimetres, and searching again finds the same neighbours.
+  double search_again_distance = 0.05;
   int num_threads = 0;                // 0 = OpenMP default
 };
 

@@ -188,7 +188,7 @@ struct LioPpf::Impl {
   std::vector<AssociatedPoint> associated;   // scratch of OverruleIfInconsistent
   std::unique_ptr<SkeletonTracker> tracker;  // PPF: kPpf only
   std::deque<ImuSample> imu;
-  std::vector<ImuSample> sweep_imu;  // a re-localized scan's samples, before the trim
+  std::vector<ImuSample> sweep_imu;  // a re-localized scan's samples after the gap
   std::deque<QueuedScan> scans;
   std::vector<ScanResult> pending;
   struct BridgedGap {

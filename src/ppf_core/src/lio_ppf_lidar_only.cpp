@@ -264,11 +264,7 @@ PoseTrace LioPpf::Impl::GyroTraceToEnd(const DecodedScan& scan, const Eigen::Iso
       last_imu_stamp < t_end - kCoverSlackS) {
     return trace;
   }
-  // Only the samples after the gap: one from before it would be interpolated across it.
-  std::vector<ImuSample> samples;
-  for (const ImuSample& s : sweep_imu) {
-    if (s.stamp_s >= imu_back_stamp_s) samples.push_back(s);
-  }
+  const std::vector<ImuSample>& samples = sweep_imu;
   std::vector<double> times{scan.t_begin};
   for (const ImuSample& s : samples) {
     if (s.stamp_s > scan.t_begin && s.stamp_s < t_end) times.push_back(s.stamp_s);
@@ -302,11 +298,10 @@ PoseTrace LioPpf::Impl::GyroTraceToEnd(const DecodedScan& scan, const Eigen::Iso
 // steps on the map, no prior) measures its pose and its velocity together, from how the early
 // points fit against the late ones; the frame is de-skewed again with that velocity (and the
 // gyro's turn, GyroTraceToEnd), and LIO resumes with it (ResumeLio) instead of the chord over
-// the gap. The wide gate finds the
-// alignment; it also keeps rows paired with the wrong surface, which pull the velocity back
-// toward the one the scan was de-skewed with, so the gate then narrows step by step to twice the
-// fit gate (coarse to fine, as in ICP). In kPpf the sample also meets the skeleton's patches:
-// the walls and the ground are not in its kNN map.
+// the gap. The wide gate finds the alignment; it also keeps rows paired with the wrong surface,
+// which pull the velocity back toward the one the scan was de-skewed with, so the gate then
+// narrows step by step to twice the fit gate (coarse to fine, as in ICP). In kPpf the sample
+// also meets the skeleton's patches: the walls and the ground are not in its kNN map.
 void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                                         double t_end) {
   has_scan_velocity = false;

@@ -56,9 +56,14 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
   r.timings.deskew = MsSince(t0);
   last_scan_end = t_end;
   r.stamp_s = t_end;
-  // A re-localized sweep's own gyro samples (GyroTraceToEnd), before they are trimmed below.
+  // A re-localized sweep's own gyro samples (GyroTraceToEnd), before they are trimmed below;
+  // only those after the gap: one from before it would be interpolated across it.
   sweep_imu.clear();
-  if (Relocating() && imu_back) sweep_imu.assign(imu.begin(), imu.end());
+  if (Relocating() && imu_back) {
+    for (const ImuSample& s : imu) {
+      if (s.stamp_s >= imu_back_stamp_s) sweep_imu.push_back(s);
+    }
+  }
   // Keep one sample at or before the state time for the next interpolation (the moving-start
   // initialization keeps all: it preintegrates from its first scan).
   while (!moving_init && imu.size() > 2 && imu[1].stamp_s <= state.stamp_s) imu.pop_front();

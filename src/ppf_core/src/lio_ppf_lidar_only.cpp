@@ -258,10 +258,11 @@ void LioPpf::Impl::RedeskewLidarOnly(const DecodedScan& scan, const std::vector<
 // the pose at t_end. Empty when the samples do not cover the sweep (an IMU loss's scans).
 PoseTrace LioPpf::Impl::GyroTraceToEnd(const DecodedScan& scan, const Eigen::Isometry3d& T_end,
                                        const Eigen::Vector3d& v_world, double t_end) const {
-  constexpr double kCoverSlackS = 0.01;
+  // Covered as a resumed scan is (kResumeSlackS): the nearest sample is held for the bit of the
+  // sweep before the first sample back, or after the last one.
   PoseTrace trace;
-  if (!imu_back || sweep_imu.empty() || imu_back_stamp_s > scan.t_begin + kCoverSlackS ||
-      last_imu_stamp < t_end - kCoverSlackS) {
+  if (!imu_back || sweep_imu.empty() || imu_back_stamp_s > scan.t_begin + kResumeSlackS ||
+      last_imu_stamp < t_end - kResumeSlackS) {
     return trace;
   }
   const std::vector<ImuSample>& samples = sweep_imu;

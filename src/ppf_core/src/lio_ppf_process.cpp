@@ -551,6 +551,12 @@ IekfReport LioPpf::Impl::Register(const DecodedScan& scan, const std::vector<Tim
   for (ResidualProvider* p : providers) p->BeginScan(frame);
   IekfOptions iekf = config.iekf;
   if (t_end - map_init_stamp_s < iekf.refined_gate_after_s) iekf.refined_gate = 0.0;
+  // A re-localized scan starts from a coarse alignment (decimetres and a degree off), not from an
+  // IMU-propagated pose: the few iterations that suffice for the latter stopped its update half
+  // way, a pitch error among what was left, and the scans after it extend the map from there. It
+  // runs until the same convergence test holds; the cap only bounds one scan's time.
+  constexpr int kRelocalizedMaxIterations = 30;
+  if (Relocating()) iekf.max_iterations = std::max(iekf.max_iterations, kRelocalizedMaxIterations);
   const NavState predicted = state;
   contradicted = false;
   IekfReport rep = IekfUpdate(iekf, config.extrinsic.T_imu_lidar, providers, &state);

@@ -153,15 +153,16 @@ INSTANTIATE_TEST_SUITE_P(
         // extrapolated about the vertical only, extending no map), solving for its own velocity
         // (coarse to fine), and LIO resumes with the position as uncertain as a re-localization
         // leaves it and that velocity; the sweep is de-skewed with the gyro's turn, its samples
-        // being back. Found again within the full bounds 1 s after, tilt within the full bound;
-        // the APE bound is looser than the full one: one sweep pins the speed and the position
-        // along the street only together, and the scans after the gap keep some of that error
-        // (docs/decisions.md, "Consistency check"). With the model's turn the kPpf re-localized
-        // scan tilted 0.06 deg above the undisturbed maximum, over the tilt bound.
+        // being back; its update runs to convergence. Found again within the full bounds 1 s
+        // after, APE within the full 1.2x. The tilt: kNN within the full bound; kPpf 0.01 deg
+        // more. On this straight, accelerating drive a pitch is what an accelerometer bias along
+        // the way also explains, and the two runs settle on it apart: kPpf's undisturbed run
+        // below kNN's (0.30 vs 0.32 deg), both re-localized runs at 0.35 (docs/decisions.md,
+        // "The re-localized update runs to convergence").
         Case{"silence3_knn", kUrban, "vlp16", 12, "--silence 6:3", 9, kKnn, Case::kRelocated,
-             0.05, 0.05, 1.5},
+             0.05, 0.05, 1.2},
         Case{"silence3_ppf", kUrban, "vlp16", 12, "--silence 6:3", 9, kPpf, Case::kRelocated,
-             0.05, 0.05, 1.8},
+             0.05, 0.06, 1.2},
         // An IMU gap of 0.5 s in the first turn (14-17 s), bridged by integration, each scan
         // across it widened for its part of the gap and de-skewed again with the turn missed
         // there: in kKnn the turn the scan alone measured before the update, in kPpf (its kNN

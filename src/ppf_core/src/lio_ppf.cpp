@@ -55,8 +55,7 @@ void LioPpf::Impl::ResetFilter(const std::string& reason) {
   init.Reset();
   motion.Reset();
   recent_fits.clear();
-  lio_fits.clear();
-  lio_steps_pos.clear();
+  lio_baseline.Clear();
   lio_steps_rot.clear();
   map.clear();
   imu.clear();

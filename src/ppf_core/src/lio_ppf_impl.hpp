@@ -22,6 +22,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "ppf_core/lio/fit_baseline.hpp"
 #include "ppf_core/lio/hypothesis_search.hpp"
 #include "ppf_core/lio/iekf.hpp"
 #include "ppf_core/lio/imu_init.hpp"
@@ -232,9 +233,8 @@ struct LioPpf::Impl {
   double acc_scale = 1.0;            // of the initialization in use
   ConstantVelocityModel motion;      // LiDAR-only prediction (IMU frame poses)
   std::deque<double> recent_fits;    // LiDAR-only: fits of the last scans (AlignGuesses)
-  std::deque<double> lio_fits;       // LIO: posterior fits of the last scans (consistency check)
-  std::deque<double> lio_steps_pos;  // ... and the scan-alone steps' translation (m)
-  std::deque<double> lio_steps_rot;  // ... and rotation (rad)
+  FitBaseline lio_baseline;          // LIO: posterior fits and scan-alone steps, per score kind
+  std::deque<double> lio_steps_rot;  // ... the scan-alone steps' rotation (rad), every kind
   bool contradicted = false;         // this scan's pose fits the map poorly and no guess did better
   size_t ignored_imu = 0;
   // IMU loss (docs/behaviour.md, "IMU loss"): LIO running, but scans are registered LiDAR-only

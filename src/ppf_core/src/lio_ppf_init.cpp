@@ -170,8 +170,7 @@ void LioPpf::Impl::ClearMovingInit() {
   map.clear();
   motion.Reset();
   recent_fits.clear();
-  lio_fits.clear();
-  lio_steps_pos.clear();
+  lio_baseline.Clear();
   lio_steps_rot.clear();
   if (tracker) tracker->Reset();
   knn->Reset();

@@ -684,39 +684,41 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const
     return ProbePose(sample, s.T_world_imu() * T_il, config.lidar_only, config.knn, config.iekf,
                      wide);
   };
+  PoseProbe probe;
+  const bool associated_probe = associated_at(state, &probe);
+  if (!associated_probe) probe = probe_at(state);
+  // Judged against the recent scans' scores of the same kind (fit_baseline.hpp says why).
+  using Kind = FitBaseline::Kind;
+  const Kind kind = associated_probe ? Kind::kAssociated : Kind::kSampled;
   // The scan-alone step judges the position only: a heading or tilt error of degrees shows in
   // the fit already, and on a fast hand-held walk the step's rotation scatters by a degree or two
   // (de-skew within the sweep; in kPpf a map of scattered points only), which would set it off
   // (docs/decisions.md, "Consistency check"). Beyond the bound and well beyond what the scan
   // alone said on the recent scans.
-  const double usual_pos = 3.0 * Median(lio_steps_pos);
+  const double usual_pos = 3.0 * lio_baseline.MedianStepPos(kind);
   auto too_far = [&](const PoseProbe& p) {
     const double pos = p.step_pos.norm();
     return pos > co.max_step_pos && pos > usual_pos;
   };
-  PoseProbe probe;
-  const bool associated_probe = associated_at(state, &probe);
-  if (!associated_probe) probe = probe_at(state);
   const double fit = probe.score.fit;
   r->fit = fit;
   r->disagreement_rot_deg = probe.step_rot.norm() * 180.0 / M_PI;
   r->disagreement_pos_m = probe.step_pos.norm();
-  auto remember = [this](double f, const PoseProbe& p) {
-    lio_fits.push_back(f);
-    lio_steps_pos.push_back(p.step_pos.norm());
+  auto remember = [this](Kind k, double f, const PoseProbe& p) {
+    lio_baseline.Remember(k, f, p.step_pos.norm());
     lio_steps_rot.push_back(p.step_rot.norm());
-    for (std::deque<double>* d : {&lio_fits, &lio_steps_pos, &lio_steps_rot}) {
-      if (d->size() > 10) d->pop_front();
-    }
+    if (lio_steps_rot.size() > 10) lio_steps_rot.pop_front();
   };
-  if (lio_fits.size() < 5) {  // no baseline yet (a young map fits unevenly)
-    remember(fit, probe);
+  // No baseline of this kind yet (a young map fits unevenly; in kPpf the sampled kind comes only
+  // with the scans whose scattered points meet the map too rarely).
+  if (!lio_baseline.Ready(kind)) {
+    remember(kind, fit, probe);
     return rep;
   }
-  const double baseline = Median(lio_fits);
+  const double baseline = lio_baseline.MedianFit(kind);
   const bool poor_fit = fit < co.fit_ratio * baseline;
   if (!poor_fit && !too_far(probe)) {
-    remember(fit, probe);
+    remember(kind, fit, probe);
     return rep;
   }
 
@@ -795,7 +797,7 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const
     why << "; no guess does better (best " << c.name << ", fit " << fit2 << "): pose kept";
     Append(&r->reason, why.str());
     contradicted = poor_fit;
-    remember(fit, probe);
+    remember(kind, fit, probe);
     for (ResidualProvider* p : providers) p->BeginScan(frame);
     return rep;
   }
@@ -811,9 +813,9 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const
   // The baseline holds what every scan measures: the associations of the update just run.
   PoseProbe after;
   if (associated_probe && associated_at(s, &after)) {
-    remember(after.score.fit, after);
-  } else {
-    remember(fit2, probe2);
+    remember(Kind::kAssociated, after.score.fit, after);
+  } else if (!associated_probe) {
+    remember(Kind::kSampled, fit2, probe2);
   }
   return rep2;
 }

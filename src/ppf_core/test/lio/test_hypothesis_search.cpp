@@ -2,6 +2,7 @@
 // missed is recovered, and a guess that fits ends the search; the scan alone measures the velocity
 // it was taken at; in kPpf the probes also meet the skeleton's patches. The facade's LiDAR-only
 // runs are in test_end_to_end (synthetic room) and ppf_tools' test_lidar_only_real / test_accuracy.
+// The consistency check's memory of the recent scores (fit_baseline.hpp) is at the end.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "ppf_core/config.hpp"
+#include "ppf_core/lio/fit_baseline.hpp"
 #include "ppf_core/lio/hypothesis_search.hpp"
 #include "ppf_core/lio/so3.hpp"
 #include "ppf_core/lio/voxel_map.hpp"
@@ -224,6 +227,43 @@ TEST(ProbePoseAssociated, SaysWhatAFreshSearchAtThatPoseSays) {
   // The step is the scan's own: toward the truth.
   EXPECT_LT((off.translation() + reused.step_pos - truth.translation()).norm(),
             0.5 * (off.translation() - truth.translation()).norm());
+}
+
+// The consistency check compares a scan's score with the recent scans' of the same kind. The
+// scores below are those of an undisturbed kPpf hand-held walk (60 s indoor VLP-16): kNN
+// associations fit 0.95-1.0, while a scan with too few of them is scored on a searched sample of
+// the whole scan at 0.4-0.7 (the kNN map holds only the scattered points). With one shared
+// baseline each sampled scan fell below fit_ratio x 0.98 and was reported as contradicted.
+TEST(FitBaseline, JudgesEachKindOfScoreAgainstItsOwnRecentScores) {
+  using Kind = FitBaseline::Kind;
+  const double ratio = ConsistencyOptions().fit_ratio;
+  FitBaseline b;
+  auto poor = [&](Kind kind, double fit) { return fit < ratio * b.MedianFit(kind); };
+  const double associated[] = {0.98, 0.97, 1.0, 0.99, 0.96, 0.98, 0.99, 1.0, 0.98, 0.97, 0.99};
+  for (double f : associated) b.Remember(Kind::kAssociated, f, 0.01);
+  EXPECT_TRUE(b.Ready(Kind::kAssociated));
+  EXPECT_EQ(b.Size(Kind::kAssociated), 10u);  // the window
+  // The first sampled scores meet no baseline of their kind: nothing to judge them by yet.
+  EXPECT_FALSE(b.Ready(Kind::kSampled));
+  const double sampled[] = {0.61, 0.65, 0.58, 0.52, 0.61, 0.64, 0.48};
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_TRUE(poor(Kind::kAssociated, sampled[i]));  // what a shared baseline did
+    b.Remember(Kind::kSampled, sampled[i], 0.03);
+  }
+  ASSERT_TRUE(b.Ready(Kind::kSampled));
+  EXPECT_DOUBLE_EQ(b.MedianFit(Kind::kSampled), 0.61);
+  EXPECT_FALSE(poor(Kind::kSampled, sampled[5]));
+  EXPECT_FALSE(poor(Kind::kSampled, sampled[6]));
+  // A heading error of degrees still drops either kind far below its own (about 0.4 of it).
+  EXPECT_TRUE(poor(Kind::kSampled, 0.4 * 0.61));
+  EXPECT_TRUE(poor(Kind::kAssociated, 0.4 * 0.98));
+  // Neither kind moves the other's median; the step baselines are kept per kind too.
+  EXPECT_DOUBLE_EQ(b.MedianFit(Kind::kAssociated), 0.99);  // the upper median of the last 10
+  EXPECT_DOUBLE_EQ(b.MedianStepPos(Kind::kAssociated), 0.01);
+  EXPECT_DOUBLE_EQ(b.MedianStepPos(Kind::kSampled), 0.03);
+  b.Clear();
+  EXPECT_FALSE(b.Ready(Kind::kAssociated));
+  EXPECT_DOUBLE_EQ(b.MedianFit(Kind::kAssociated), 0.0);
 }
 
 }  // namespace

@@ -544,9 +544,12 @@ IekfReport LioPpf::Impl::Register(const DecodedScan& scan, const std::vector<Tim
   // the prediction is that near: the update moves the pose by about the prior's uncertainty, which
   // after a gap, a loss or a re-localization is decimetres for a few scans.
   const double pos_std = std::sqrt(state.P.block<3, 3>(kPos, kPos).diagonal().maxCoeff());
-  knn->SetKeepNeighbours(!lidar && pos_std < config.knn.search_again_distance);
+  const bool keep = !lidar && pos_std < config.knn.search_again_distance;
+  knn->SetKeepNeighbours(keep);
   providers.push_back(knn.get());
   const bool skeleton = tracker != nullptr;
+  // The skeleton rows keep their patch lookups on the same terms.
+  if (skeleton) tracker->SetKeepDistance(keep ? config.knn.search_again_distance : 0.0);
   if (skeleton) providers.push_back(tracker->residual_provider().get());  // PPF: skeleton rows
   for (ResidualProvider* p : providers) p->BeginScan(frame);
   IekfOptions iekf = config.iekf;

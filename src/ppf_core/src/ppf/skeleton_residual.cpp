@@ -22,7 +22,8 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
                    const Eigen::Isometry3d& T_world_lidar, const std::vector<Plane>& window_world,
                    double eps, std::vector<SkeletonMatch>* matches,
                    const PlanePatchMap* patches = nullptr, bool window_fallback = true,
-                   int num_threads = 0) {
+                   int num_threads = 0, std::vector<PatchLookup>* lookups = nullptr,
+                   float keep_distance = 0.0f) {
   matches->clear();
   const bool have_normals = own_normals.size() == skeleton_indices.size();
   const bool use_patches = patches != nullptr && have_normals && patches->num_cells() > 0;
@@ -42,6 +43,10 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
   const long n = static_cast<long>(skeleton_indices.size());
   const long num_points = static_cast<long>(points_lidar.size());
   std::vector<SkeletonMatch> per_point(n);
+  if (lookups != nullptr && lookups->size() != skeleton_indices.size()) {
+    lookups->assign(skeleton_indices.size(), PatchLookup());
+  }
+  const float keep2 = lookups != nullptr ? keep_distance * keep_distance : 0.0f;
   // Each point is a hash lookup and a few dot products: parallel only above a few thousand
   // points, where it pays for the fork/join (docs/decisions.md, "Parallel skeleton matching");
   // results are identical (each point writes its own slot).
@@ -58,8 +63,21 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
       const Eigen::Vector3d p = points_lidar[idx].cast<double>();
       if (use_patches) {
         const Eigen::Vector3d p_w = T_world_lidar * p;
-        const PlanePatchMap::Patch* patch =
-            patches->Find(p_w, T_world_lidar.linear() * own_normals[i], patch_min_cos);
+        const Eigen::Vector3f q_w = p_w.cast<float>();
+        PatchLookup* last = lookups != nullptr ? &(*lookups)[static_cast<size_t>(i)] : nullptr;
+        const PlanePatchMap::Patch* patch;
+        // The last lookup's patch while the point stays near where it was made (as the kNN rows
+        // keep their neighbours): a later iteration moves it by millimetres in a 2 m cell.
+        if (last != nullptr && last->done && (q_w - last->at).squaredNorm() < keep2) {
+          patch = last->patch;
+        } else {
+          patch = patches->Find(p_w, T_world_lidar.linear() * own_normals[i], patch_min_cos);
+          if (last != nullptr) {
+            last->done = true;
+            last->at = q_w;
+            last->patch = patch;
+          }
+        }
         if (patch != nullptr) {
           const double s = patch->plane.SignedDistance(p_w);
           if (std::abs(s) < eps) {
@@ -132,6 +150,7 @@ void SkeletonResidualProvider::Reset() {
   planes_world_.clear();
   skeleton_indices_.clear();
   matches_.clear();
+  lookups_.clear();
 }
 
 void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
@@ -145,6 +164,7 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
     }
   }
   matches_.clear();
+  lookups_.clear();
   own_normals_.clear();
   if (prefit_ != nullptr && (normal_gate_deg_ > 0.0 || patches_ != nullptr)) {
     // Normal of each skeleton point's own plane; the gate is skipped if labels and pre-fit
@@ -171,7 +191,7 @@ void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lida
   if (frame_ == nullptr) return;
   MatchSkeleton(frame_->points_lidar, skeleton_indices_, own_normals_, normal_gate_deg_,
                 T_world_lidar, planes_world_, eps_, &matches_, patches_, window_fallback_,
-                num_threads_);
+                num_threads_, &lookups_, static_cast<float>(keep_distance_));
   rows->reserve(rows->size() + matches_.size());
   for (const SkeletonMatch& m : matches_) {
     PointPlaneRow row;

@@ -151,5 +151,55 @@ TEST(PlanePatchMap, SkeletonResidualsUseThePatchOfTheirCellNotTheWindow) {
   }
 }
 
+TEST(PlanePatchMap, SkeletonRowsKeepTheirPatchWithinTheKeepDistance) {
+  // Two neighbouring cells whose ground patches differ by 3 cm (x < 2 m: z = 0; x >= 2 m: z =
+  // 0.03). A skeleton point 1 cm before the cell border keeps the patch it was matched to while
+  // a later iteration moves it by less than the keep distance (as the kNN rows keep their
+  // neighbours), looks up again beyond it, and starts afresh with the next scan.
+  PpfConfig cfg;
+  SkeletonWindow window(cfg);
+  PlanePatchMap patches;
+  for (double x = 0.1; x < 2.0; x += 0.3)
+    for (double y = 0.1; y < 2.0; y += 0.3) {
+      patches.Insert({x, y, 0.0}, kUp);
+      patches.Insert({x + 2.0, y, 0.03}, kUp);
+    }
+  patches.FinishInsert();
+  ASSERT_EQ(patches.num_patches(), 2u);
+  FittedPlane ground;
+  ground.plane = Plane{kUp, 0.0};
+  ground.num_inliers = 500;
+  ScanFrame frame;
+  frame.points_lidar = {Eigen::Vector3f(1.99f, 1.0f, 0.01f)};
+  frame.labels = {PointLabel::kSkeleton};
+  PrefitResult prefit;
+  prefit.planes = {ground};
+  prefit.skeleton_indices = {0};
+  prefit.skeleton_plane = {0};
+  // The height of the plane the point's row uses (the patch normal's sign is the PCA's).
+  auto height_at = [&](SkeletonResidualProvider* provider, double dx) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation().x() = dx;
+    std::vector<PointPlaneRow> rows;
+    provider->ComputeRows(T, &rows);
+    EXPECT_EQ(rows.size(), 1u);
+    return rows.empty() ? 1.0 : -rows[0].offset / rows[0].normal_world.z();
+  };
+  for (const double keep : {0.0, 0.05}) {
+    SkeletonResidualProvider provider(&window, 0.2);
+    provider.SetPrefitSource(&prefit, 10.0);
+    provider.SetPatchMap(&patches, false);
+    provider.SetKeepDistance(keep);
+    provider.BeginScan(frame);
+    EXPECT_NEAR(height_at(&provider, 0.0), 0.0, 1e-9);  // cell x < 2: z = 0
+    // 2 cm on, across the border: the kept patch, or with keep 0 the new cell's.
+    EXPECT_NEAR(height_at(&provider, 0.02), keep > 0.0 ? 0.0 : 0.03, 1e-9) << "keep " << keep;
+    EXPECT_NEAR(height_at(&provider, 0.3), 0.03, 1e-9);  // beyond the keep distance
+    EXPECT_NEAR(height_at(&provider, 0.0), 0.0, 1e-9);   // ... and back: looked up again
+    provider.BeginScan(frame);  // a new scan keeps nothing from the last one
+    EXPECT_NEAR(height_at(&provider, 0.02), 0.03, 1e-9);
+  }
+}
+
 }  // namespace
 }  // namespace ppf

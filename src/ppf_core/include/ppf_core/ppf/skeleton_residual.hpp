@@ -26,6 +26,13 @@ namespace ppf {
 class SkeletonWindow;
 struct PrefitResult;
 
+// A skeleton point's last patch lookup within a scan (SkeletonResidualProvider::SetKeepDistance).
+struct PatchLookup {
+  bool done = false;
+  Eigen::Vector3f at = Eigen::Vector3f::Zero();  // world position the lookup was made at
+  const PlanePatchMap::Patch* patch = nullptr;   // its result (nullptr: no patch of its surface)
+};
+
 struct SkeletonMatch {
   int point_index = -1;          // index into the scan's points
   int plane_index = -1;          // index into the window planes passed in; -1 = a map patch
@@ -72,6 +79,12 @@ class SkeletonResidualProvider : public ResidualProvider {
   }
   // OpenMP threads for the matching loop (PpfConfig::num_threads); 0 = the OpenMP default.
   void SetNumThreads(int num_threads) { num_threads_ = num_threads; }
+  // Metres; > 0: within one scan a point keeps the patch of its last lookup while its world
+  // position stays within this distance of where the lookup was made (the residual is always
+  // evaluated at the current pose); 0: every iteration looks up again. The caller sets it per
+  // scan, as it sets the kNN rows' KnnOptions::search_again_distance (LioPpf: only for a scan
+  // whose prediction is that near). The patch map must not change within the scan.
+  void SetKeepDistance(double metres) { keep_distance_ = metres; }
   std::string Name() const override { return "skeleton"; }
   void BeginScan(const ScanFrame& frame) override;
   void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
@@ -88,6 +101,8 @@ class SkeletonResidualProvider : public ResidualProvider {
   std::vector<Plane> planes_world_;
   std::vector<int> skeleton_indices_;
   std::vector<SkeletonMatch> matches_;
+  std::vector<PatchLookup> lookups_;  // per skeleton_indices_ entry, this scan
+  double keep_distance_ = 0.0;
   const PrefitResult* prefit_ = nullptr;
   double normal_gate_deg_ = 0.0;
   const PlanePatchMap* patches_ = nullptr;

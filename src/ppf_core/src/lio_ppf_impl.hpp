@@ -54,13 +54,6 @@ struct LioPpf::Impl {
   static double MsSince(Clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   }
-  // The upper median (element size/2 in order); 0 for none.
-  static double Median(const std::deque<double>& d) {
-    if (d.empty()) return 0.0;
-    std::vector<double> v(d.begin(), d.end());
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    return v[v.size() / 2];
-  }
   static void Append(std::string* reason, const std::string& what) {
     if (what.empty()) return;
     if (!reason->empty()) *reason += "; ";

@@ -191,7 +191,8 @@ void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lida
   if (frame_ == nullptr) return;
   MatchSkeleton(frame_->points_lidar, skeleton_indices_, own_normals_, normal_gate_deg_,
                 T_world_lidar, planes_world_, eps_, &matches_, patches_, window_fallback_,
-                num_threads_, &lookups_, static_cast<float>(keep_distance_));
+                num_threads_, keep_distance_ > 0.0 ? &lookups_ : nullptr,
+                static_cast<float>(keep_distance_));
   rows->reserve(rows->size() + matches_.size());
   for (const SkeletonMatch& m : matches_) {
     PointPlaneRow row;

@@ -19,6 +19,17 @@
 
 namespace ppf {
 
+// The upper median (element size/2 in order, the upper of the two middles for an even count);
+// 0 for none. Shared by the consistency check and the LiDAR-only fit gate so that both judge a
+// fit by the same statistic.
+inline double UpperMedian(const std::deque<double>& values) {
+  if (values.empty()) return 0.0;
+  std::vector<double> v(values.begin(), values.end());
+  const size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(mid), v.end());
+  return v[mid];
+}
+
 class FitBaseline {
  public:
   enum class Kind { kAssociated = 0, kSampled = 1 };
@@ -43,8 +54,8 @@ class FitBaseline {
   size_t Size(Kind kind) const { return history(kind).fits.size(); }
 
   // Medians (upper, for an even count) of the remembered scans of that kind; 0 when none.
-  double MedianFit(Kind kind) const { return Median(history(kind).fits); }
-  double MedianStepPos(Kind kind) const { return Median(history(kind).steps_pos); }
+  double MedianFit(Kind kind) const { return UpperMedian(history(kind).fits); }
+  double MedianStepPos(Kind kind) const { return UpperMedian(history(kind).steps_pos); }
 
   void Clear() {
     for (History& h : kinds_) {
@@ -58,15 +69,6 @@ class FitBaseline {
     std::deque<double> fits;
     std::deque<double> steps_pos;
   };
-
-  // The upper median for an even count (the core's Median).
-  static double Median(const std::deque<double>& values) {
-    if (values.empty()) return 0.0;
-    std::vector<double> v(values.begin(), values.end());
-    const size_t mid = v.size() / 2;
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(mid), v.end());
-    return v[mid];
-  }
 
   History& history(Kind kind) { return kinds_[static_cast<int>(kind)]; }
   const History& history(Kind kind) const { return kinds_[static_cast<int>(kind)]; }

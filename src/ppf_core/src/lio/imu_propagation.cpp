@@ -21,6 +21,34 @@ Eigen::Isometry3d PoseTrace::PoseAt(double t) const {
   return T;
 }
 
+StateCov ImuTransition::Dense() const {
+  StateCov F = StateCov::Identity();
+  F.block<3, 3>(kRot, kRot) = rot_rot;
+  F.block<3, 3>(kRot, kBg) = -Eigen::Matrix3d::Identity() * dt;
+  F.block<3, 3>(kPos, kVel) = Eigen::Matrix3d::Identity() * dt;
+  F.block<3, 3>(kVel, kRot) = vel_rot;
+  F.block<3, 3>(kVel, kBa) = vel_ba;
+  F.block<3, 2>(kVel, kGrav) = vel_grav;
+  return F;
+}
+
+StateCov ImuTransition::Apply(const StateCov& P) const {
+  // M = F P: only the rotation, position and velocity rows differ from P's.
+  StateCov M = P;
+  M.middleRows<3>(kRot) = rot_rot * P.middleRows<3>(kRot) - dt * P.middleRows<3>(kBg);
+  M.middleRows<3>(kPos) += dt * P.middleRows<3>(kVel);
+  M.middleRows<3>(kVel) += vel_rot * P.middleRows<3>(kRot) + vel_ba * P.middleRows<3>(kBa) +
+                           vel_grav * P.middleRows<2>(kGrav);
+  // M F^T: the same for the columns.
+  StateCov out = M;
+  out.middleCols<3>(kRot) = M.middleCols<3>(kRot) * rot_rot.transpose() - dt * M.middleCols<3>(kBg);
+  out.middleCols<3>(kPos) += dt * M.middleCols<3>(kVel);
+  out.middleCols<3>(kVel) += M.middleCols<3>(kRot) * vel_rot.transpose() +
+                             M.middleCols<3>(kBa) * vel_ba.transpose() +
+                             M.middleCols<2>(kGrav) * vel_grav.transpose();
+  return out;
+}
+
 ImuSample InterpolateImu(const std::vector<ImuSample>& samples, double t) {
   if (samples.empty()) return ImuSample{t, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   if (t <= samples.front().stamp_s) {
@@ -131,15 +159,13 @@ void PropagateImu(const std::vector<ImuSample>& samples, double t_end, double ac
       trace->knots.push_back(knot);
     }
 
-    // Error-state transition over dt (first order), error order [th p v bg ba g(2)].
-    StateCov F = StateCov::Identity();
-    F.block<3, 3>(kRot, kRot) = SO3Exp(-w * dt);
-    F.block<3, 3>(kRot, kBg) = -Eigen::Matrix3d::Identity() * dt;
-    F.block<3, 3>(kPos, kVel) = Eigen::Matrix3d::Identity() * dt;
-    F.block<3, 3>(kVel, kRot) = -R0 * Skew(0.5 * (a0 + a1)) * dt;
-    F.block<3, 3>(kVel, kBa) = -R0 * dt;
-    F.block<3, 2>(kVel, kGrav) = S2Jacobian(state->gravity_world) * dt;
-    StateCov P = F * state->P * F.transpose();
+    ImuTransition F;
+    F.rot_rot = SO3Exp(-w * dt);
+    F.dt = dt;
+    F.vel_rot = -R0 * Skew(0.5 * (a0 + a1)) * dt;
+    F.vel_ba = -R0 * dt;
+    F.vel_grav = S2Jacobian(state->gravity_world) * dt;
+    StateCov P = F.Apply(state->P);
     P.block<3, 3>(kRot, kRot).diagonal().array() += noise.gyro * noise.gyro * dt;
     P.block<3, 3>(kVel, kVel).diagonal().array() += noise.acc * noise.acc * dt;
     P.block<3, 3>(kBg, kBg).diagonal().array() += noise.gyro_bias * noise.gyro_bias * dt;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #ifdef _OPENMP
@@ -49,18 +50,25 @@ bool PlanePrefitter::SplitAndCheckShape(const Plane& plane) {
   // The scan is in the LiDAR frame here, so each beam has one elevation angle whatever the
   // sensor's attitude; this holds for a tilted or hand-held sensor too. Percentiles, not the
   // extremes: a few points of a neighbouring beam (or noise) inside the band must not make one
-  // beam's circle look like a surface.
+  // beam's circle look like a surface. The percentiles are taken of tan(elevation) = z / |xy|,
+  // which orders the points as the elevation does, and only the two picked are turned into
+  // angles: one division per point instead of an atan2 and a hypot.
   elevation_.clear();
   elevation_.reserve(split_.strict.size());
   for (int pos : split_.strict) {
     const Eigen::Vector3f& p = remaining_[pos];
-    elevation_.push_back(std::atan2(p.z(), std::hypot(p.x(), p.y())));
+    const float xy = std::sqrt(p.x() * p.x() + p.y() * p.y());
+    // Straight above or below the sensor: +-inf, the elevation's +-90 degrees.
+    elevation_.push_back(xy > 0.0f ? p.z() / xy
+                                   : (p.z() > 0.0f   ? std::numeric_limits<float>::infinity()
+                                      : p.z() < 0.0f ? -std::numeric_limits<float>::infinity()
+                                                     : 0.0f));
   }
   if (elevation_.size() < 2) return false;
   const auto at = [&](double q) {
     const size_t k = static_cast<size_t>(q * static_cast<double>(elevation_.size() - 1));
     std::nth_element(elevation_.begin(), elevation_.begin() + k, elevation_.end());
-    return static_cast<double>(elevation_[k]);
+    return std::atan(static_cast<double>(elevation_[k]));
   };
   const double spread_deg = (at(0.95) - at(0.05)) * 180.0 / M_PI;
   return spread_deg >= config_.min_elevation_spread_deg;

@@ -5,6 +5,7 @@
 
 #include "ppf_core/lio/deskew.hpp"
 #include "ppf_core/lio/imu_propagation.hpp"
+#include "ppf_core/lio/so3.hpp"
 #include "synthetic.hpp"
 
 namespace ppf {
@@ -63,6 +64,43 @@ TEST(Deskew, PointsAtScanEndAreUnchanged) {
   EXPECT_TRUE(out[0].isApprox(Eigen::Vector3f(1, 2, 3)));
   // Seen 0.1 m earlier along +x: at the end it lies 0.1 m further back.
   EXPECT_TRUE(out[1].isApprox(Eigen::Vector3f(0.9f, 2, 3), 1e-5f));
+}
+
+// The per-segment form of DeskewToEnd is the pose trace's own PoseAt, point by point, on a trace
+// with turning, accelerating segments, and for times before its first and after its last knot.
+TEST(Deskew, SegmentFormEqualsThePoseTraceAtEveryPoint) {
+  PoseTrace trace;
+  for (int k = 0; k <= 20; ++k) {
+    ImuKnot knot;
+    knot.t = 10.0 + 0.005 * k;
+    knot.R = SO3Exp(Eigen::Vector3d(0.1 * k, -0.05 * k, 0.8 + 0.2 * k) * 0.01);
+    knot.p = Eigen::Vector3d(3.0 + 0.04 * k, -1.0 + 0.002 * k * k, 0.5);
+    knot.v = Eigen::Vector3d(8.0 + 0.1 * k, 0.4 * k, -0.3);
+    knot.omega = Eigen::Vector3d(0.3, -1.5 + 0.1 * k, 2.0);  // up to 2.5 rad/s
+    knot.acc_world = Eigen::Vector3d(2.0, -1.0 + 0.2 * k, 0.5);
+    trace.knots.push_back(knot);
+  }
+  const Eigen::Isometry3d T_imu_lidar = test::MakePose(Eigen::Vector3d(0.2, -0.1, 0.3), 0.1, 0, 0.5);
+  std::vector<TimedPoint> pts;
+  for (int i = 0; i < 500; ++i) {
+    const double t = 9.99 + 0.12 * i / 499.0;  // 10 ms before the first knot to 10 ms after
+    pts.push_back({Eigen::Vector3f(30.0f * std::cos(0.1f * i), 30.0f * std::sin(0.1f * i),
+                                   -1.5f + 0.01f * i),
+                   0.f, t});
+  }
+  const double t_end = trace.knots.back().t;
+  std::vector<Eigen::Vector3f> out;
+  DeskewToEnd(pts, trace, t_end, T_imu_lidar, &out);
+  const Eigen::Isometry3d T_lidarend_world = (trace.PoseAt(t_end) * T_imu_lidar).inverse();
+  double max_err = 0.0, max_moved = 0.0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Eigen::Vector3d ref =
+        T_lidarend_world * (trace.PoseAt(pts[i].t) * (T_imu_lidar * pts[i].p.cast<double>()));
+    max_err = std::max(max_err, (out[i].cast<double>() - ref).norm());
+    max_moved = std::max(max_moved, (pts[i].p.cast<double>() - ref).norm());
+  }
+  EXPECT_LT(max_err, 1e-5);  // float output of 30 m points
+  EXPECT_GT(max_moved, 0.5);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 
 #include <Eigen/Eigenvalues>
 
@@ -114,6 +115,39 @@ TEST(ImuPropagation, CovarianceGrowsAndStaysSymmetricPositive) {
   EXPECT_GT(es.eigenvalues().minCoeff(), 0.0);
   // Velocity uncertainty from accel noise over 2 s: sigma_a^2 * t (plus bias/tilt terms).
   EXPECT_GT(s.P(kVel, kVel), 0.1 * 0.1 * 2.0);
+}
+
+// The transition's block form is the dense F P F^T, for a full (every block coupled) covariance.
+TEST(ImuPropagation, BlockTransitionEqualsTheDenseProduct) {
+  std::srand(7);
+  const StateCov A = StateCov::Random();
+  const StateCov P = A * A.transpose() + StateCov::Identity();
+  ImuTransition F;
+  F.rot_rot = SO3Exp(Eigen::Vector3d(0.01, -0.02, 0.03));
+  F.dt = 0.005;
+  F.vel_rot = Eigen::Matrix3d::Random();
+  F.vel_ba = Eigen::Matrix3d::Random();
+  F.vel_grav = Eigen::Matrix<double, 3, 2>::Random();
+  const StateCov dense = F.Dense() * P * F.Dense().transpose();
+  EXPECT_LT((F.Apply(P) - dense).cwiseAbs().maxCoeff(), 1e-12 * dense.cwiseAbs().maxCoeff());
+  // Each off-identity block matters: dropping one is seen.
+  ImuTransition no_grav = F;
+  no_grav.vel_grav.setZero();
+  EXPECT_GT((no_grav.Apply(P) - dense).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+// SO3Exp (series below 0.1 rad, sincos above) against Eigen's angle-axis over the whole range,
+// both sides of the switch included.
+TEST(So3, ExpMatchesAngleAxisAcrossTheSeriesSwitch) {
+  const Eigen::Vector3d axis = Eigen::Vector3d(0.3, -0.5, 0.8).normalized();
+  for (double angle : {1e-12, 1e-6, 1e-3, 0.05, 0.0999999, 0.1000001, 0.5, 2.0, 3.1}) {
+    const Eigen::Matrix3d R = SO3Exp(angle * axis);
+    const Eigen::Matrix3d ref = Eigen::AngleAxisd(angle, axis).toRotationMatrix();
+    EXPECT_LT((R - ref).cwiseAbs().maxCoeff(), 1e-15) << angle;
+    EXPECT_LT((R * R.transpose() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), 1e-15)
+        << angle;
+    EXPECT_NEAR(SO3Log(R).dot(axis), angle, 1e-12) << angle;
+  }
 }
 
 TEST(ImuPropagation, InterpolationAndHoldBeyondEnds) {

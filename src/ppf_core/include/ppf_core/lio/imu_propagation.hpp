@@ -85,6 +85,22 @@ void PropagateImu(const std::vector<ImuSample>& samples, double t_end, double ac
                   const ImuNoise& noise, NavState* state, PoseTrace* trace,
                   GyroSaturation* saturation = nullptr);
 
+// The error-state transition of one propagation segment (first order, error order
+// [th p v bg ba g(2)]): the identity but for these blocks.
+struct ImuTransition {
+  Eigen::Matrix3d rot_rot = Eigen::Matrix3d::Identity();  // Exp(-w dt)
+  double dt = 0.0;  // rot <- bg: -I dt; pos <- vel: I dt
+  Eigen::Matrix3d vel_rot = Eigen::Matrix3d::Zero();  // -R [a]x dt
+  Eigen::Matrix3d vel_ba = Eigen::Matrix3d::Zero();   // -R dt
+  Eigen::Matrix<double, 3, 2> vel_grav = Eigen::Matrix<double, 3, 2>::Zero();  // S2 Jacobian dt
+
+  // The full 17x17 matrix (for tests and reference).
+  StateCov Dense() const;
+  // F P F^T, using the blocks only: a dense 17x17 product pair, per IMU sample, cost more than the
+  // rest of the propagation.
+  StateCov Apply(const StateCov& P) const;
+};
+
 // Per sample, a bit per gyro axis (1 << axis) that reads at saturation (ImuNoise::gyro_range).
 std::vector<uint8_t> SaturatedGyroAxes(const std::vector<ImuSample>& samples, double gyro_range);
 

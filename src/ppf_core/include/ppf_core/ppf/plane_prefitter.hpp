@@ -110,7 +110,7 @@ class PlanePrefitter {
   std::vector<int> next_index_;
   SandwichSplit split_;
   std::vector<uint8_t> labels_;  // SandwichClass of each working point, from SplitAndCheckShape
-  std::vector<float> elevation_;  // scratch of SplitAndCheckShape, radians
+  std::vector<float> elevation_;  // scratch of SplitAndCheckShape: tan(elevation) per point
 };
 
 }  // namespace ppf

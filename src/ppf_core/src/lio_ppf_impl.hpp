@@ -123,6 +123,10 @@ struct LioPpf::Impl {
                              double t_end, const NavState& predicted, const IekfOptions& iekf,
                              const std::vector<ResidualProvider*>& providers, const IekfReport& rep,
                              ScanResult* r);
+  IekfReport RedeskewVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
+                              double t_end, const NavState& predicted, const IekfOptions& iekf,
+                              const std::vector<ResidualProvider*>& providers,
+                              const IekfReport& rep, ScanResult* r);
   void PrepareFrame(double t_end);
   void CountLabels(ScanResult* r) const;
   IekfReport OverruleIfInconsistent(const NavState& predicted, const IekfOptions& iekf,
@@ -200,6 +204,7 @@ struct LioPpf::Impl {
   // started from (CorrectGapTurn).
   double gap_from_s = 0.0;
   double gap_to_s = 0.0;
+  PoseTrace deskew_trace;  // what the current frame was de-skewed with (Deskew)
   NavState gap_start;
   std::vector<ImuSample> gap_samples;
   ScanFrame frame;

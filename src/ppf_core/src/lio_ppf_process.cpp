@@ -205,6 +205,7 @@ double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* t
 void LioPpf::Impl::Deskew(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                           const PoseTrace& trace, double t_end) {
   frame = ScanFrame();
+  deskew_trace = trace;
   if (scan.has_time_field || scan.times_estimated) {
     DeskewToEnd(pts, trace, t_end, config.extrinsic.T_imu_lidar, &frame.points_lidar,
                 config.num_threads);
@@ -566,6 +567,7 @@ IekfReport LioPpf::Impl::Register(const DecodedScan& scan, const std::vector<Tim
   if (!lidar && skeleton) {
     rep = RedeskewGapTurn(scan, pts, t_end, predicted, iekf, providers, rep, r);
   }
+  if (!lidar) rep = RedeskewVelocity(scan, pts, t_end, predicted, iekf, providers, rep, r);
   // The LiDAR-only scans were aligned from guesses already; the IMU's prediction is checked here.
   if (!lidar && config.consistency.check) {
     const auto t0 = Clock::now();
@@ -647,6 +649,70 @@ IekfReport LioPpf::Impl::RedeskewGapTurn(const DecodedScan& scan,
   std::ostringstream os;
   os << "the update turns the prediction across the gap by " << used.norm() * 180.0 / M_PI
      << " deg: de-skewed again with it (" << passes << (passes == 1 ? " pass)" : " passes)");
+  Append(&r->reason, os.str());
+  return out;
+}
+
+// The scan was de-skewed with the predicted velocity. Where the update corrects it by more than
+// a sweep can ignore (the scans after a re-localization, whose velocity one sweep's smear gave,
+// or after a bridged gap), the points were displaced along the correction by dv (t_end - t), the
+// earliest by the whole sweep's worth: registered and inserted into the map like that, the first
+// resumed scans leave their smear in the map ahead, where the old map has little, and the scans
+// after them register on it. The update's velocity correction, constant over the sweep, de-skews
+// the scan again (and kPpf splits it again), and the update runs again from the same prediction
+// and covariance: the de-skew is linearised at the updated velocity while the prior stays the
+// IMU's, so the LiDAR is not counted twice. A few passes reach the fixed point. Below a centimetre
+// over the sweep (every IMU-propagated scan of an undisturbed run) nothing is done.
+IekfReport LioPpf::Impl::RedeskewVelocity(const DecodedScan& scan,
+                                          const std::vector<TimedPoint>& pts, double t_end,
+                                          const NavState& predicted, const IekfOptions& iekf,
+                                          const std::vector<ResidualProvider*>& providers,
+                                          const IekfReport& rep, ScanResult* r) {
+  if (rep.skipped || !(scan.has_time_field || scan.times_estimated)) return rep;
+  if (deskew_trace.knots.empty() || pts.empty()) return rep;
+  constexpr int kPasses = 3;
+  constexpr double kMinSmearM = 0.01;   // the correction's displacement over the sweep
+  constexpr double kSettledM = 0.002;  // a pass that changes it by less is the last
+  double t_first = t_end;
+  for (const TimedPoint& tp : pts) t_first = std::min(t_first, tp.t);
+  const double sweep = t_end - t_first;
+  if (!(sweep > 0.0)) return rep;
+  const auto t0 = Clock::now();
+  const PoseTrace base = deskew_trace;
+  IekfReport out = rep;
+  Eigen::Vector3d used = Eigen::Vector3d::Zero();
+  int passes = 0;
+  for (; passes < kPasses; ++passes) {
+    const Eigen::Vector3d dv = state.v_world - predicted.v_world;
+    if (dv.norm() * sweep < kMinSmearM) break;
+    if (passes > 0 && (dv - used).norm() * sweep < kSettledM) break;
+    used = dv;
+    // The trace with the velocity dv higher throughout and the same end pose.
+    PoseTrace trace = base;
+    for (ImuKnot& k : trace.knots) {
+      k.p += dv * (k.t - t_end);
+      k.v += dv;
+    }
+    const NavState updated = state;
+    Deskew(scan, pts, trace, t_end);
+    PrepareFrame(t_end);
+    if (tracker) {
+      // The split follows the tracked planes from the updated pose.
+      frame.T_world_lidar_predicted = updated.T_world_imu() * config.extrinsic.T_imu_lidar;
+      tracker->Split(&frame);
+      frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
+    }
+    state = predicted;
+    frame.T_world_lidar_predicted = state.T_world_imu() * config.extrinsic.T_imu_lidar;
+    for (ResidualProvider* p : providers) p->BeginScan(frame);
+    out = IekfUpdate(iekf, config.extrinsic.T_imu_lidar, providers, &state);
+  }
+  if (passes == 0) return rep;
+  CountLabels(r);
+  r->timings.deskew += MsSince(t0);
+  std::ostringstream os;
+  os << "the update corrects the predicted velocity by " << used.norm()
+     << " m/s: de-skewed again with it (" << passes << (passes == 1 ? " pass)" : " passes)");
   Append(&r->reason, os.str());
   return out;
 }

@@ -25,7 +25,8 @@
 namespace ppf::tools::test {
 
 // <PPF_TEST_WORKDIR>/<sim_args>_<duration> (spaces and dashes as '_') holding the sequence
-// `ppf_sim <sim_args> <extra_args> --duration <duration> --seed 1 --storage mcap`. Test cases
+// `ppf_sim <sim_args> <extra_args> --duration <duration> --seed 1 --storage mcap` (the seed
+// the arguments give, if any). Test cases
 // that share a sequence (knn and ppf) may run at once (ctest -j): it is generated once,
 // atomically (GenerateSequenceOnce). A failure is a test failure naming ppf_sim's log.
 inline std::string GenerateSimSequence(const std::string& sim_args, double duration,
@@ -39,9 +40,11 @@ inline std::string GenerateSimSequence(const std::string& sim_args, double durat
   const std::string dir = (std::filesystem::path(PPF_TEST_WORKDIR) / n).string();
   const bool ok = GenerateSequenceOnce(dir, [&](const std::string& out) {
     std::ostringstream cmd;
+    // Seed 1 unless the arguments choose another drive.
+    const bool seeded = (sim_args + extra_args).find("--seed") != std::string::npos;
     cmd << PPF_SIM_EXE << " " << sim_args << extra_args << " --duration " << duration
-        << " --seed 1 --storage mcap --out '" << out << "' > '" << dir << "." << ::getpid()
-        << ".log' 2>&1";
+        << (seeded ? "" : " --seed 1") << " --storage mcap --out '" << out << "' > '" << dir
+        << "." << ::getpid() << ".log' 2>&1";
     return std::system(cmd.str().c_str()) == 0;
   });
   EXPECT_TRUE(ok) << "ppf_sim failed, see " << dir << ".<pid>.log";

@@ -156,7 +156,8 @@ CoarseAlignment LioPpf::Impl::AlignGuesses(double t_end) {
   if (fallback_scan) AddAlongTrackGuesses(T_cv * T_il, motion.velocity_world(), dt, &h);
   if (h.size() > before_along) options.good_fit = 1.0;  // along a street many places fit well
   if (recent_fits.size() >= 3) {
-    options.good_fit = std::min(options.good_fit, options.good_fit_relative * UpperMedian(recent_fits));
+    options.good_fit =
+        std::min(options.good_fit, options.good_fit_relative * UpperMedian(recent_fits));
   }
   CoarseAlignment c = AlignHypotheses(frame, h, options, config.iekf, config.knn);
   recent_fits.push_back(c.fit);

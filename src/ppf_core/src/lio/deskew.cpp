@@ -14,7 +14,8 @@ namespace {
 
 // One IMU segment of the trace seen from the LiDAR at the scan end. With T_lidarend_world = [A|b]
 // and tau = t - knot.t, a point q (IMU frame) at time t in the segment lands at
-//   A (R_k Exp(w tau) q + p_k + v_k tau + acc tau^2 / 2) + b = M Exp(w tau) q + c + d tau + e tau^2:
+//   A (R_k Exp(w tau) q + p_k + v_k tau + acc tau^2 / 2) + b = M Exp(w tau) q + c + d tau + e
+//   tau^2:
 // everything but the small rotation is the segment's, computed once instead of per point.
 struct SegmentFromEnd {
   double t = 0.0;
@@ -36,7 +37,8 @@ void DeskewToEnd(const std::vector<TimedPoint>& points, const PoseTrace& trace, 
     // PoseAt's identity: every time has the same pose.
     const Eigen::Isometry3d T = T_lidarend_world * T_imu_lidar;
     for (long i = 0; i < n; ++i) {
-      (*out)[static_cast<size_t>(i)] = (T * points[static_cast<size_t>(i)].p.cast<double>()).cast<float>();
+      (*out)[static_cast<size_t>(i)] =
+          (T * points[static_cast<size_t>(i)].p.cast<double>()).cast<float>();
     }
     return;
   }

@@ -15,8 +15,8 @@ TEST(Deskew, MovingScanMatchesStaticScanAtScanEnd) {
   // 2 m/s forward with a lateral wiggle, yawing at ~1 rad/s: points at the start of a 0.1 s
   // sweep are off by ~20 cm and several cm of rotation-induced shift without de-skew.
   const test::PoseFn pose = [](double t) {
-    return test::MakePose(Eigen::Vector3d(2.0 * t, 0.3 * std::sin(2.0 * t), 0.1 * t), 0.02 * t,
-                          0.0, 1.0 * t + 0.2 * std::sin(3.0 * t));
+    return test::MakePose(Eigen::Vector3d(2.0 * t, 0.3 * std::sin(2.0 * t), 0.1 * t), 0.02 * t, 0.0,
+                          1.0 * t + 0.2 * std::sin(3.0 * t));
   };
   const Eigen::Isometry3d T_imu_lidar = test::MakePose(Eigen::Vector3d(0.2, 0.0, 0.1), 0, 0, 0.3);
   test::LidarModel lidar;
@@ -80,13 +80,14 @@ TEST(Deskew, SegmentFormEqualsThePoseTraceAtEveryPoint) {
     knot.acc_world = Eigen::Vector3d(2.0, -1.0 + 0.2 * k, 0.5);
     trace.knots.push_back(knot);
   }
-  const Eigen::Isometry3d T_imu_lidar = test::MakePose(Eigen::Vector3d(0.2, -0.1, 0.3), 0.1, 0, 0.5);
+  const Eigen::Isometry3d T_imu_lidar =
+      test::MakePose(Eigen::Vector3d(0.2, -0.1, 0.3), 0.1, 0, 0.5);
   std::vector<TimedPoint> pts;
   for (int i = 0; i < 500; ++i) {
     const double t = 9.99 + 0.12 * i / 499.0;  // 10 ms before the first knot to 10 ms after
-    pts.push_back({Eigen::Vector3f(30.0f * std::cos(0.1f * i), 30.0f * std::sin(0.1f * i),
-                                   -1.5f + 0.01f * i),
-                   0.f, t});
+    pts.push_back(
+        {Eigen::Vector3f(30.0f * std::cos(0.1f * i), 30.0f * std::sin(0.1f * i), -1.5f + 0.01f * i),
+         0.f, t});
   }
   const double t_end = trace.knots.back().t;
   std::vector<Eigen::Vector3f> out;

@@ -123,6 +123,9 @@ struct LioPpf::Impl {
                              double t_end, const NavState& predicted, const IekfOptions& iekf,
                              const std::vector<ResidualProvider*>& providers, const IekfReport& rep,
                              ScanResult* r);
+  IekfReport UpdateRedeskewed(double t_end, const NavState& updated, const NavState& predicted,
+                              const IekfOptions& iekf,
+                              const std::vector<ResidualProvider*>& providers);
   IekfReport RedeskewVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                               double t_end, const NavState& predicted, const IekfOptions& iekf,
                               const std::vector<ResidualProvider*>& providers,

@@ -603,6 +603,24 @@ IekfReport LioPpf::Impl::Register(const DecodedScan& scan, const std::vector<Tim
   return rep;
 }
 
+// The frame was de-skewed again (RedeskewGapTurn, RedeskewVelocity): kPpf splits it again, the
+// split following the tracked planes from the updated pose, and the update runs again from the
+// prediction and its covariance.
+IekfReport LioPpf::Impl::UpdateRedeskewed(double t_end, const NavState& updated,
+                                          const NavState& predicted, const IekfOptions& iekf,
+                                          const std::vector<ResidualProvider*>& providers) {
+  PrepareFrame(t_end);
+  if (tracker) {
+    frame.T_world_lidar_predicted = updated.T_world_imu() * config.extrinsic.T_imu_lidar;
+    tracker->Split(&frame);
+    frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
+  }
+  state = predicted;
+  frame.T_world_lidar_predicted = state.T_world_imu() * config.extrinsic.T_imu_lidar;
+  for (ResidualProvider* p : providers) p->BeginScan(frame);
+  return IekfUpdate(iekf, config.extrinsic.T_imu_lidar, providers, &state);
+}
+
 // kPpf's answer to a scan propagated across part of a bridged IMU gap (kNN has CorrectGapTurn
 // before the update): the interpolation across the gap missed what the body turned there, and the
 // scan was de-skewed without it. The update's own rotation correction, read as a constant rate
@@ -632,16 +650,7 @@ IekfReport LioPpf::Impl::RedeskewGapTurn(const DecodedScan& scan,
     const NavState updated = state;
     state = predicted;
     RepropagateGap(rate, scan, pts, t_end);
-    // The split follows the tracked planes from the updated pose; the update starts from the
-    // prediction again.
-    PrepareFrame(t_end);
-    frame.T_world_lidar_predicted = updated.T_world_imu() * config.extrinsic.T_imu_lidar;
-    tracker->Split(&frame);
-    frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
-    state = predicted;
-    frame.T_world_lidar_predicted = state.T_world_imu() * config.extrinsic.T_imu_lidar;
-    for (ResidualProvider* p : providers) p->BeginScan(frame);
-    out = IekfUpdate(iekf, config.extrinsic.T_imu_lidar, providers, &state);
+    out = UpdateRedeskewed(t_end, updated, predicted, iekf, providers);
   }
   if (passes == 0) return rep;
   CountLabels(r);
@@ -695,17 +704,7 @@ IekfReport LioPpf::Impl::RedeskewVelocity(const DecodedScan& scan,
     }
     const NavState updated = state;
     Deskew(scan, pts, trace, t_end);
-    PrepareFrame(t_end);
-    if (tracker) {
-      // The split follows the tracked planes from the updated pose.
-      frame.T_world_lidar_predicted = updated.T_world_imu() * config.extrinsic.T_imu_lidar;
-      tracker->Split(&frame);
-      frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
-    }
-    state = predicted;
-    frame.T_world_lidar_predicted = state.T_world_imu() * config.extrinsic.T_imu_lidar;
-    for (ResidualProvider* p : providers) p->BeginScan(frame);
-    out = IekfUpdate(iekf, config.extrinsic.T_imu_lidar, providers, &state);
+    out = UpdateRedeskewed(t_end, updated, predicted, iekf, providers);
   }
   if (passes == 0) return rep;
   CountLabels(r);

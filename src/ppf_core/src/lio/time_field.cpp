@@ -187,37 +187,73 @@ struct DecodedRange {
   double t_lo = 0.0, t_hi = 0.0;  // first-found min / max of the kept times (SetTimeSpan's)
 };
 
+// The largest float that passes the decode's |c| <= 1e30 test made in double: no float equals
+// 1e30, so a float's magnitude is at most this exactly when it is below 1e30 as well.
+float LargestFloatNotAbove(double limit) {
+  float f = static_cast<float>(limit);
+  while (static_cast<double>(f) > limit) f = std::nextafter(f, 0.0f);
+  return f;
+}
+const float kMaxCoordF = LargestFloatNotAbove(1e30);
+
+inline float LoadFloat32(const uint8_t* p) {
+  float v;
+  std::memcpy(&v, p, 4);
+  return v;
+}
+
+// Where DecodeFloat32Range takes each point's time from (TimeMap's three cases, the field's type
+// split): chosen once per cloud, not per point.
+enum class TimeSource { kRaw, kFieldFloat32, kFieldOther, kNone };
+
 // Every field float32 (nearly every driver): one pass writing straight into the output, with
 // the general path's values and validity test (a non-finite or > 1e30 coordinate fails
-// |c| <= 1e30; the time is the same double). Decodes the indices [begin, end) compacted to
-// dst + begin.
-void DecodeAllFloat32Range(const CloudView& cloud, const PointFields& f, const TimeMap& times,
-                           size_t begin, size_t end, TimedPoint* dst, DecodedRange* range) {
+// |c| <= 1e30, tested on the float against kMaxCoordF; the time is the same double). Decodes the
+// indices [begin, end) compacted to dst + begin.
+template <TimeSource kTime, bool kIntensity>
+void DecodeFloat32Range(const CloudView& cloud, const PointFields& f, const TimeMap& times,
+                        size_t begin, size_t end, TimedPoint* dst, DecodedRange* range) {
   range->begin = begin;
   size_t kept = begin, dropped = 0, bad_time = 0;
-  double lo = 0.0, hi = 0.0;
+  double lo = std::numeric_limits<double>::infinity();
+  double hi = -std::numeric_limits<double>::infinity();
   const uint32_t ox = f.x->offset, oy = f.y->offset, oz = f.z->offset;
-  const uint32_t oi = f.intensity ? f.intensity->offset : 0;
+  const uint32_t oi = kIntensity ? f.intensity->offset : 0;
+  const uint32_t ot = times.field != nullptr ? times.field->offset : 0;
+  const FieldType time_type = times.field != nullptr ? times.field->type : FieldType::kFloat32;
+  const double base = times.base, scale = times.scale, stamp_s = times.stamp_s;
+  const double window_lo = times.lo, window_hi = times.hi;
+  const double* raw = times.raw;
   ForEachPointIn(cloud, begin, end, [&](size_t i, const uint8_t* p) {
-    const double x = ReadFloat32(p + ox), y = ReadFloat32(p + oy), z = ReadFloat32(p + oz);
-    const double t = times.At(i, p);
-    if (!(std::abs(x) <= 1e30 && std::abs(y) <= 1e30 && std::abs(z) <= 1e30) || !std::isfinite(t)) {
+    const float x = LoadFloat32(p + ox), y = LoadFloat32(p + oy), z = LoadFloat32(p + oz);
+    double t;
+    if constexpr (kTime == TimeSource::kRaw) {
+      t = base + raw[i] * scale;
+    } else if constexpr (kTime == TimeSource::kFieldFloat32) {
+      t = base + ReadFloat32(p + ot) * scale;
+    } else if constexpr (kTime == TimeSource::kFieldOther) {
+      t = base + ReadAs(p + ot, time_type) * scale;
+    } else {
+      t = stamp_s;
+    }
+    const bool finite_xyz =
+        (std::fabs(x) <= kMaxCoordF) & (std::fabs(y) <= kMaxCoordF) & (std::fabs(z) <= kMaxCoordF);
+    if (!finite_xyz || !std::isfinite(t)) {
       ++dropped;
       return;
     }
-    if (!times.Plausible(t)) {
+    if (!(t >= window_lo && t <= window_hi)) {  // TimeMap::Plausible
       ++bad_time;
       return;
     }
-    if (kept == begin) lo = hi = t;
     lo = std::min(lo, t);
     hi = std::max(hi, t);
     TimedPoint& tp = dst[kept++];
-    tp.p = Eigen::Vector3f(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
+    tp.p = Eigen::Vector3f(x, y, z);
     tp.t = t;
-    if (f.intensity) {
-      const double v = ReadFloat32(p + oi);
-      tp.intensity = std::isfinite(v) && std::abs(v) < 1e30 ? static_cast<float>(v) : 0.f;
+    if constexpr (kIntensity) {
+      const float v = LoadFloat32(p + oi);
+      tp.intensity = std::fabs(v) <= kMaxCoordF ? v : 0.f;
     } else {
       tp.intensity = 0.f;
     }
@@ -225,14 +261,32 @@ void DecodeAllFloat32Range(const CloudView& cloud, const PointFields& f, const T
   range->kept = kept - begin;
   range->dropped = dropped;
   range->bad_time = bad_time;
-  range->t_lo = lo;
-  range->t_hi = hi;
+  range->t_lo = range->kept > 0 ? lo : 0.0;
+  range->t_hi = range->kept > 0 ? hi : 0.0;
+}
+
+using DecodeRangeFn = void (*)(const CloudView&, const PointFields&, const TimeMap&, size_t, size_t,
+                               TimedPoint*, DecodedRange*);
+
+template <TimeSource kTime>
+DecodeRangeFn PickDecodeRange(bool intensity) {
+  return intensity ? &DecodeFloat32Range<kTime, true> : &DecodeFloat32Range<kTime, false>;
+}
+
+DecodeRangeFn PickDecodeRange(const PointFields& f, const TimeMap& times) {
+  const bool intensity = f.intensity != nullptr;
+  if (times.raw != nullptr) return PickDecodeRange<TimeSource::kRaw>(intensity);
+  if (times.field == nullptr) return PickDecodeRange<TimeSource::kNone>(intensity);
+  if (times.field->type == FieldType::kFloat32) {
+    return PickDecodeRange<TimeSource::kFieldFloat32>(intensity);
+  }
+  return PickDecodeRange<TimeSource::kFieldOther>(intensity);
 }
 
 // Fewer points than this decode on one thread: a 16-beam scan decodes faster than a fork/join.
 constexpr size_t kParallelDecodePoints = 32768;
 
-// DecodeAllFloat32Range over the whole cloud, split in index ranges over `threads`; the ranges'
+// DecodeFloat32Range over the whole cloud, split in index ranges over `threads`; the ranges'
 // points are then moved together in order and their time spans combined in order, which gives
 // the serial result (the first of equal minima / maxima, as SetTimeSpan finds them).
 void DecodeAllFloat32(const CloudView& cloud, const PointFields& f, const TimeMap& times,
@@ -243,12 +297,13 @@ void DecodeAllFloat32(const CloudView& cloud, const PointFields& f, const TimeMa
   const int parts = threads > 1 && n >= kParallelDecodePoints ? threads : 1;
   DecodedRange ranges[8];
   const int used = std::min(parts, 8);
+  const DecodeRangeFn decode = PickDecodeRange(f, times);
   if (used == 1) {
-    DecodeAllFloat32Range(cloud, f, times, 0, n, dst, &ranges[0]);
+    decode(cloud, f, times, 0, n, dst, &ranges[0]);
   } else {
 #pragma omp parallel for schedule(static, 1) num_threads(used)
     for (int c = 0; c < used; ++c) {
-      DecodeAllFloat32Range(cloud, f, times, n * c / used, n * (c + 1) / used, dst, &ranges[c]);
+      decode(cloud, f, times, n * c / used, n * (c + 1) / used, dst, &ranges[c]);
     }
   }
   size_t kept = 0;
@@ -348,7 +403,8 @@ std::string TimeFieldInfo::Describe() const {
   std::ostringstream os;
   os << "time field '" << name << "' " << TypeName(type) << " (x" << unit_scale_s << " s), "
      << (absolute ? "absolute" : "relative to the header stamp");
-  if (!absolute) os << (stamp_at_end ? ", header stamp at scan end" : ", header stamp at scan start");
+  if (!absolute)
+    os << (stamp_at_end ? ", header stamp at scan end" : ", header stamp at scan start");
   return os.str();
 }
 
@@ -416,9 +472,8 @@ void TimeFieldDecoder::Detect(const CloudView& cloud, const FieldDesc* time_fiel
   info_.name = time_field->name;
   info_.type = time_field->type;
   info_.offset = time_field->offset;
-  info_.unit_scale_s = options_.unit_scale_s > 0.0
-                           ? options_.unit_scale_s
-                           : (IsIntegerType(time_field->type) ? 1e-9 : 1.0);
+  info_.unit_scale_s = options_.unit_scale_s > 0.0 ? options_.unit_scale_s
+                                                   : (IsIntegerType(time_field->type) ? 1e-9 : 1.0);
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   std::vector<double> finite;
   finite.reserve(raw.size());

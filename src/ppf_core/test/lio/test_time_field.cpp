@@ -101,8 +101,8 @@ INSTANTIATE_TEST_SUITE_P(
                    false},
         // Livox: offset_time uint32 ns relative to the scan start.
         Convention{"livox_offset_time_u32ns",
-                   Enc("offset_time", FieldType::kUint32, 1e-9, false, false, false), 120.0,
-                   false, false}),
+                   Enc("offset_time", FieldType::kUint32, 1e-9, false, false, false), 120.0, false,
+                   false}),
     [](const ::testing::TestParamInfo<Convention>& info) { return std::string(info.param.label); });
 
 TEST(TimeField, StampAtEndWithNonNegativeOffsetsNeedsConfig) {
@@ -173,8 +173,8 @@ TEST(TimeField, NoTimeFieldAzimuthEstimate) {
   m.rings = 4;
   m.azimuth_steps = 360;
   const auto pose = [](double) { return Eigen::Isometry3d::Identity(); };
-  const auto pts = test::SimulateScan(test::MakeRoomScene(), pose, Eigen::Isometry3d::Identity(),
-                                      7.0, m);
+  const auto pts =
+      test::SimulateScan(test::MakeRoomScene(), pose, Eigen::Isometry3d::Identity(), 7.0, m);
   TimeEncoding enc;
   enc.name = "";
   const test::CloudBuffer cloud = test::MakeCloud(pts, 7.0, pts.back().t, enc);
@@ -346,7 +346,8 @@ TEST(TimeField, FuzzedLayoutsNeverCrash) {
     v.width = static_cast<uint32_t>(count(rng));
     v.height = static_cast<uint32_t>(1 + iter % 3);
     v.point_step = static_cast<uint32_t>(small(rng));
-    v.row_step = (iter % 4 == 0) ? 0 : v.width * v.point_step + static_cast<uint32_t>(small(rng) % 5);
+    v.row_step =
+        (iter % 4 == 0) ? 0 : v.width * v.point_step + static_cast<uint32_t>(small(rng) % 5);
     v.is_bigendian = (iter % 50 == 0);
     const int nfields = 1 + small(rng) % 6;
     for (int f = 0; f < nfields; ++f) {
@@ -400,6 +401,94 @@ TEST(TimeField, EmptyCloudIsValid) {
 // Decoding a large cloud on several threads (index ranges moved together afterwards) into
 // recycled points must give the serial result into fresh ones bit for bit, with invalid points in
 // every range and rows of the cloud split between threads.
+// The same cloud with float64 coordinates: the general decode path, which reads each element
+// through its type, while the float32 cloud takes the fast path with its tests on floats.
+test::CloudBuffer WithFloat64Xyz(const test::CloudBuffer& f32) {
+  test::CloudBuffer c;
+  c.view = f32.view;
+  const uint32_t step = 32;  // x y z float64, intensity float32, a 4-byte time field
+  c.view.point_step = step;
+  c.view.row_step = step * c.view.width;
+  c.view.fields = {{"x", 0, FieldType::kFloat64, 1},
+                   {"y", 8, FieldType::kFloat64, 1},
+                   {"z", 16, FieldType::kFloat64, 1},
+                   {"intensity", 24, FieldType::kFloat32, 1}};
+  bool timed = false;
+  for (const FieldDesc& f : f32.view.fields) {
+    if (f.offset == 16) c.view.fields.push_back({f.name, 28, f.type, 1});
+    timed = timed || f.offset == 16;
+  }
+  c.bytes.assign(static_cast<size_t>(c.view.row_step), 0);
+  for (uint32_t i = 0; i < c.view.width; ++i) {
+    const uint8_t* src = f32.bytes.data() + static_cast<size_t>(i) * f32.view.point_step;
+    uint8_t* dst = c.bytes.data() + static_cast<size_t>(i) * step;
+    for (int k = 0; k < 3; ++k) {
+      float v;
+      std::memcpy(&v, src + 4 * k, 4);
+      const double d = v;
+      std::memcpy(dst + 8 * k, &d, 8);
+    }
+    std::memcpy(dst + 24, src + 12, 4);
+    if (timed) std::memcpy(dst + 28, src + 16, 4);
+  }
+  c.view.data = c.bytes.data();
+  c.view.size = c.bytes.size();
+  return c;
+}
+
+// The float32 fast path keeps exactly the points, values and counts of the general path, at the
+// edges of its tests too: coordinates at the largest float below 1e30 and the next one up, NaN
+// and infinities, intensities the same; for a float32, an integer and no time field.
+TEST(TimeField, Float32PathEqualsTheGeneralPath) {
+  std::vector<SimPoint> pts = StaticScan(2.0);
+  ASSERT_GT(pts.size(), 100u);
+  float edge = static_cast<float>(1e30);
+  while (static_cast<double>(edge) >= 1e30) edge = std::nextafter(edge, 0.0f);
+  const float above = std::nextafter(edge, std::numeric_limits<float>::infinity());
+  const float inf = std::numeric_limits<float>::infinity();
+  const float coords[] = {edge, -edge, above, -above, inf, -inf, std::nanf("")};
+  size_t k = 0;
+  for (const float c : coords) {
+    for (int axis = 0; axis < 3; ++axis) pts[5 + 3 * k++].p[axis] = c;
+  }
+  const float intensities[] = {edge, -edge, above, -above, inf, -inf, std::nanf(""), 7.5f};
+  const TimeEncoding f32;
+  TimeEncoding u32;
+  u32.type = FieldType::kUint32;
+  u32.unit_s = 1e-9;
+  TimeEncoding none;
+  none.name = "";
+  for (const TimeEncoding& enc : {f32, u32, none}) {
+    test::CloudBuffer fast = test::MakeCloud(pts, 2.0, pts.back().t, enc);
+    for (size_t j = 0; j < 8; ++j) {
+      std::memcpy(fast.bytes.data() + (60 + 7 * j) * fast.view.point_step + 12, &intensities[j], 4);
+    }
+    const test::CloudBuffer general = WithFloat64Xyz(fast);
+    TimeFieldDecoder a, b;
+    std::string error;
+    // Twice: the first decode reads all raw times (detection), the second each time in the loop.
+    for (int call = 0; call < 2; ++call) {
+      DecodedScan x, y;
+      ASSERT_TRUE(a.Decode(fast.view, &x, &error)) << error;
+      ASSERT_TRUE(b.Decode(general.view, &y, &error)) << error;
+      EXPECT_EQ(x.dropped_nan, 3u * 5u) << enc.name;  // above, -above, inf, -inf, NaN
+      EXPECT_EQ(x.dropped_nan, y.dropped_nan);
+      EXPECT_EQ(x.dropped_bad_time, y.dropped_bad_time);
+      EXPECT_EQ(x.t_begin, y.t_begin);
+      EXPECT_EQ(x.t_end, y.t_end);
+      ASSERT_EQ(x.points.size(), y.points.size());
+      for (size_t i = 0; i < x.points.size(); ++i) {
+        ASSERT_EQ(std::memcmp(x.points[i].p.data(), y.points[i].p.data(), 12), 0) << i;
+        ASSERT_EQ(std::memcmp(&x.points[i].intensity, &y.points[i].intensity, 4), 0) << i;
+        ASSERT_EQ(std::memcmp(&x.points[i].t, &y.points[i].t, 8), 0) << i;
+      }
+      size_t kept_edges = 0;
+      for (const TimedPoint& tp : x.points) kept_edges += std::abs(tp.p.x()) == edge;
+      EXPECT_EQ(kept_edges, 2u);
+    }
+  }
+}
+
 TEST(TimeField, ParallelDecodeEqualsSerialBitForBit) {
   test::LidarModel m;
   m.rings = 32;

@@ -22,7 +22,12 @@ bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double threshold, Eigen::
     const Eigen::Vector3d q = p.cast<double>() - c;
     cov += q * q.transpose();
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  // The closed-form 3x3 solution, a third of the iterative solver's work on every kNN row: the
+  // points are centred, and where a plane is accepted its normal's eigenvalue lies far below the
+  // other two, the case the closed form resolves to rounding; the collinear test below compares
+  // with a margin far above its error.
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(cov);
   // Collinear neighbours (a single scan line) span no plane: the middle eigenvalue vanishes.
   if (es.eigenvalues()(1) < 1e-6 * std::max(1e-12, es.eigenvalues()(2))) return false;
   if (es.eigenvalues()(1) < min_spread * min_spread * static_cast<double>(pts.size())) return false;
@@ -57,8 +62,8 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
   ok.assign(indices_.size(), 0);
   const size_t k = static_cast<size_t>(std::max(3, options_.k));
   const bool cache = k <= kMaxCachedK && fits_.size() == indices_.size();
-  const float keep2 = static_cast<float>(options_.search_again_distance *
-                                         options_.search_again_distance);
+  const float keep2 =
+      static_cast<float>(options_.search_again_distance * options_.search_again_distance);
   const bool keep = cache && keep_neighbours_ && options_.search_again_distance > 0.0;
 #ifdef _OPENMP
   const int threads = options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
@@ -68,7 +73,8 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
     std::vector<Eigen::Vector3f> nn;
 #pragma omp for schedule(dynamic, 256)
     for (long j = 0; j < n; ++j) {
-      const Eigen::Vector3d p_l = frame_->points_lidar[indices_[static_cast<size_t>(j)]].cast<double>();
+      const Eigen::Vector3d p_l =
+          frame_->points_lidar[indices_[static_cast<size_t>(j)]].cast<double>();
       const Eigen::Vector3d p_w = T_world_lidar * p_l;
       const Eigen::Vector3f q_w = p_w.cast<float>();
       Eigen::Vector3d normal = Eigen::Vector3d::Zero();

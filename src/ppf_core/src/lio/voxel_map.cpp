@@ -64,6 +64,7 @@ size_t VoxelMap::GetClosest(const Point& query, size_t k, double max_range,
     // lies (1 - f) or f away along each axis where it differs.
     const Eigen::Vector3d f =
         query.cast<double>() * inv_resolution_ - Eigen::Vector3d(c.x, c.y, c.z);
+    const NeighbourBounds bounds = BoundsAt(f);
     for (const VoxelKey& o : offsets_) {
       // A neighbour voxel that lies wholly beyond the search radius, or beyond the k-th best
       // distance once k points are held, cannot change the result: its hash lookup (the cost of
@@ -71,7 +72,7 @@ size_t VoxelMap::GetClosest(const Point& query, size_t k, double max_range,
       // point distances and of the voxel keys, so no point it could hold is ever left out.
       if (o.x != 0 || o.y != 0 || o.z != 0) {
         const double limit = n == k ? std::min<double>(best_d2[k - 1], max_d2) : max_d2;
-        if (NeighbourLowerBound2(f, o) > limit * (1.0 + 1e-4)) continue;
+        if (bounds.LowerBound2(o, options_.resolution) > limit * (1.0 + 1e-4)) continue;
       }
       const VoxelIt* it = index_.Find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
       if (it == nullptr) continue;
@@ -131,16 +132,17 @@ void VoxelMap::clear() {
   num_points_ = 0;
 }
 
-double VoxelMap::NeighbourLowerBound2(const Eigen::Vector3d& f, const VoxelKey& o) const {
+VoxelMap::NeighbourBounds VoxelMap::BoundsAt(const Eigen::Vector3d& f) {
   constexpr double kMargin = 1e-4;
-  double sum = 0.0;
-  const int off[3] = {o.x, o.y, o.z};
+  NeighbourBounds b;
   for (int a = 0; a < 3; ++a) {
-    double gap = off[a] > 0 ? 1.0 - f[a] : (off[a] < 0 ? f[a] : 0.0);
-    gap = std::max(0.0, gap - kMargin);
-    sum += gap * gap;
+    const double below = std::max(0.0, f[a] - kMargin);
+    const double above = std::max(0.0, 1.0 - f[a] - kMargin);
+    b.gap2[a][0] = below * below;
+    b.gap2[a][1] = 0.0;
+    b.gap2[a][2] = above * above;
   }
-  return sum * options_.resolution * options_.resolution;
+  return b;
 }
 
 void VoxelMap::EvictOldest() {

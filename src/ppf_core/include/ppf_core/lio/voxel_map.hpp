@@ -74,8 +74,16 @@ class VoxelMap {
   using VoxelIt = std::list<Voxel>::iterator;
 
   // Squared distance from a query (at f in voxel units within its voxel) to the nearest point of
-  // the neighbour voxel at offset o, in metres squared, less a margin of 1e-4 voxel per axis.
-  double NeighbourLowerBound2(const Eigen::Vector3d& f, const VoxelKey& o) const;
+  // the neighbour voxel at offset o, in metres squared, less a margin of 1e-4 voxel per axis:
+  // each axis's squared gap to the voxel below, its own and the one above, taken once per query.
+  struct NeighbourBounds {
+    double gap2[3][3];  // [axis][offset + 1]
+    double LowerBound2(const VoxelKey& o, double resolution) const {
+      const double sum = gap2[0][o.x + 1] + gap2[1][o.y + 1] + gap2[2][o.z + 1];
+      return sum * resolution * resolution;
+    }
+  };
+  static NeighbourBounds BoundsAt(const Eigen::Vector3d& f);
   void EvictOldest();
   void BuildOffsets();
 

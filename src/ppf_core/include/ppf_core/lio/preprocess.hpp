@@ -45,9 +45,10 @@ struct PreprocessStats {
 // (deterministic). Keeps its hash table between calls: construct once, call per scan.
 class VoxelGridDownsampler {
  public:
-  // Fewer (sampled) input points than this run serially: the fork/join would cost more than the
-  // second thread saves on a 16-beam scan.
-  static constexpr size_t kParallelPoints = 32768;
+  // Fewer (sampled) input points than this run serially: near it the fork and join cost about
+  // what the second thread saves, and a 16-beam sweep lies well above it (docs/profiles.md,
+  // eleventh pass).
+  static constexpr size_t kParallelPoints = 16384;
 
   // Returns the filtered (and, if voxel_size > 1 mm, downsampled) points of `in` in `out`.
   // t_begin: the earliest point time (DecodedScan::t_begin); time buckets count from it.

@@ -75,13 +75,19 @@ bool PlanePrefitter::SplitAndCheckShape(const Plane& plane) {
 }
 
 void PlanePrefitter::Reject(const Plane& plane, PrefitResult* result) {
-  SplitSandwich(remaining_, plane, config_.delta, 1.0, &split_);
+  // The labels into the reused buffer and one pass over them, as Accept does: no semi-inlier and
+  // outlier lists (with a semi factor of 1 every point is strict or kept).
+  LabelSandwich(remaining_, plane, config_.delta, 1.0, &labels_, &split_);
   for (int pos : split_.strict) result->scattered_indices.push_back(remaining_index_[pos]);
+  constexpr uint8_t kStrict = static_cast<uint8_t>(SandwichClass::kStrict);
+  const size_t n = std::min(labels_.size(), remaining_.size());
   next_points_.clear();
   next_index_.clear();
-  for (int pos : split_.outliers) {
-    next_points_.push_back(remaining_[pos]);
-    next_index_.push_back(remaining_index_[pos]);
+  for (size_t pos = 0; pos < n; ++pos) {
+    if (labels_[pos] != kStrict) {
+      next_points_.push_back(remaining_[pos]);
+      next_index_.push_back(remaining_index_[pos]);
+    }
   }
   remaining_.swap(next_points_);
   remaining_index_.swap(next_index_);

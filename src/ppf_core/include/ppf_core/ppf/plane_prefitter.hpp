@@ -109,7 +109,7 @@ class PlanePrefitter {
   std::vector<Eigen::Vector3f> next_points_;
   std::vector<int> next_index_;
   SandwichSplit split_;
-  std::vector<uint8_t> labels_;  // SandwichClass of each working point, from SplitAndCheckShape
+  std::vector<uint8_t> labels_;  // SandwichClass of each working point (SplitAndCheckShape, Reject)
   std::vector<float> elevation_;  // scratch of SplitAndCheckShape: tan(elevation) per point
 };
 

@@ -75,22 +75,11 @@ bool PlanePrefitter::SplitAndCheckShape(const Plane& plane) {
 }
 
 void PlanePrefitter::Reject(const Plane& plane, PrefitResult* result) {
-  // The labels into the reused buffer and one pass over them, as Accept does: no semi-inlier and
-  // outlier lists (with a semi factor of 1 every point is strict or kept).
+  // A semi factor of 1 labels every point strict or outlier: the strict band goes to the
+  // scattered points, the rest stays.
   LabelSandwich(remaining_, plane, config_.delta, 1.0, &labels_, &split_);
   for (int pos : split_.strict) result->scattered_indices.push_back(remaining_index_[pos]);
-  constexpr uint8_t kStrict = static_cast<uint8_t>(SandwichClass::kStrict);
-  const size_t n = std::min(labels_.size(), remaining_.size());
-  next_points_.clear();
-  next_index_.clear();
-  for (size_t pos = 0; pos < n; ++pos) {
-    if (labels_[pos] != kStrict) {
-      next_points_.push_back(remaining_[pos]);
-      next_index_.push_back(remaining_index_[pos]);
-    }
-  }
-  remaining_.swap(next_points_);
-  remaining_index_.swap(next_index_);
+  KeepOutliers(&result->discarded_indices);
 }
 
 void PlanePrefitter::Accept(const Plane& plane, bool from_guess, int64_t track_id,
@@ -115,6 +104,10 @@ void PlanePrefitter::Accept(const Plane& plane, bool from_guess, int64_t track_i
   }
   result->planes.push_back(fitted);
 
+  KeepOutliers(&result->discarded_indices);
+}
+
+void PlanePrefitter::KeepOutliers(std::vector<int>* discarded) {
   // One pass over the labels: the semi-inliers are discarded, the outliers stay for the next
   // round (no lists of either in between).
   constexpr uint8_t kSemi = static_cast<uint8_t>(SandwichClass::kSemi);
@@ -126,7 +119,7 @@ void PlanePrefitter::Accept(const Plane& plane, bool from_guess, int64_t track_i
   next_index_.reserve(n - std::min(n, split_.strict.size()));
   for (size_t pos = 0; pos < n; ++pos) {
     if (labels_[pos] == kSemi) {
-      result->discarded_indices.push_back(remaining_index_[pos]);
+      discarded->push_back(remaining_index_[pos]);
     } else if (labels_[pos] == kOutlier) {
       next_points_.push_back(remaining_[pos]);
       next_index_.push_back(remaining_index_[pos]);

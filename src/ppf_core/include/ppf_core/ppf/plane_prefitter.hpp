@@ -101,6 +101,9 @@ class PlanePrefitter {
               PrefitResult* result);
   // Moves the strict band of `plane` to the scattered points and keeps the rest for later rounds.
   void Reject(const Plane& plane, PrefitResult* result);
+  // Makes the outliers of the last labelling (labels_) the working set; its semi-inliers go to
+  // `discarded`.
+  void KeepOutliers(std::vector<int>* discarded);
 
   PpfConfig config_;
   // Working set: remaining points (compact copy, cache-friendly) and their input indices.

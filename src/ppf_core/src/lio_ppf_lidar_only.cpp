@@ -302,7 +302,9 @@ PoseTrace LioPpf::Impl::GyroTraceToEnd(const DecodedScan& scan, const Eigen::Iso
 // gyro's turn, GyroTraceToEnd), and LIO resumes with it (ResumeLio) instead of the chord over
 // the gap. The wide gate finds the alignment; it also keeps rows paired with the wrong surface,
 // which pull the velocity back toward the one the scan was de-skewed with, so the gate then
-// narrows step by step to twice the fit gate (coarse to fine, as in ICP). In kPpf the sample
+// narrows step by step to the fit gate (coarse to fine, as in ICP): the last steps solve on the
+// rows the fit counts as on their surface, and a wider last gate still keeps enough wrong pairs
+// to leave the speed biased toward the one before the gap. In kPpf the sample
 // also meets the skeleton's patches: the walls and the ground are not in its kNN map.
 void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
                                         double t_end) {
@@ -338,7 +340,7 @@ void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan, const std::vect
   Eigen::Isometry3d T = state.T_world_imu() * T_il;
   Eigen::Vector3d v = knot.v;
   const double wide_gate = config.lidar_only.coarse_max_residual;
-  const double fine_gate = std::min(wide_gate, 2.0 * config.lidar_only.fit_gate);
+  const double fine_gate = std::min(wide_gate, config.lidar_only.fit_gate);
   double gate = wide_gate;
   bool narrowing = false;
   for (int k = 0, narrowed = 0; k < kWideSteps + kNarrowSteps; ++k) {

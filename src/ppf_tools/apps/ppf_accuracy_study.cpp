@@ -8,6 +8,10 @@
 //   ppf_accuracy_study                       # 60 s: urban and indoor x 5 LiDARs, park HDL-32
 //   ppf_accuracy_study --modes knn,ppf       # both modes
 //   ppf_accuracy_study --short --sequences indoor:vlp16
+//   ppf_accuracy_study --duration 12 --sequences urban:vlp16 --seeds 1-8 --modes knn,ppf \
+//       --disturb "--silence 6:3" --disturb-at 9   # a disturbance on eight drives, each against
+//                                                 # the same drive undisturbed
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -16,6 +20,7 @@
 #include <iomanip>
 #include <iostream>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -54,7 +59,9 @@ std::string Usage() {
          "  --modes LIST          knn, ppf or knn,ppf (default: knn)\n"
          "  --save DIR            write <sequence>_<mode>.tum and .csv (per-scan stats) there\n"
          "  --disturb ARGS        ppf_sim disturbance options for every sequence, e.g.\n"
-         "                        \"--jolt 8:5\" or \"--imu-gap 8:0.5\" (see ppf_sim --help)\n"
+         "                        \"--jolt 8:5\" or \"--imu-gap 8:0.5\" (see ppf_sim --help); the\n"
+         "                        same drive is also run undisturbed, and each disturbed APE is\n"
+         "                        judged against it (<= 1.2x + 2 mm, as the tests judge it)\n"
          "  --disturb-at S        also print how each run came back from the disturbance at S s\n"
          "                        (sim time): heading and position error --settle seconds after,\n"
          "                        the estimate aligned on the poses before S only; max tilt after\n"
@@ -84,6 +91,8 @@ struct Row {
   ppf::tools::AccuracyBound bound;
   ppf::tools::ModeRun run;
   ppf::tools::Recovery recovery;  // --disturb-at
+  // --disturb: SE(3) APE of the same drive undisturbed (same seed, mode), < 0 if it failed.
+  double undisturbed_ape = -1.0;
   std::string failure;  // non-empty: the run could not be made
 };
 
@@ -118,6 +127,27 @@ std::vector<Row> RunStudy(const ppf::tools::StudyOptions& opts,
     } catch (const std::exception& e) {
       failure = e.what();
     }
+    // With a disturbance, the same drive undisturbed: the disturbed run's APE is judged against
+    // it (at most 1.2x, as test_disturbance judges it).
+    std::string clean_bag;
+    ppf::Config clean_config;
+    ppf::Trajectory clean_gt;
+    if (!disturb.sim_args.empty() && failure.empty()) {
+      ppf::tools::SequenceSpec clean = seq;
+      clean.sim_extra.clear();
+      try {
+        clean_bag = ppf::tools::EnsureSequence(clean, duration, opts.workdir, std::cerr,
+                                               "ppf_accuracy_study: ");
+        if (!ppf::tools::LoadSequenceConfig(opts.config_dir, seq.lidar, clean_bag, opts.threads,
+                                            &clean_config, &error) ||
+            !ppf::ReadTum(clean_bag + "/groundtruth.tum", &clean_gt, &error)) {
+          throw std::runtime_error(error);
+        }
+      } catch (const std::exception& e) {
+        std::cerr << "ppf_accuracy_study: " << seq.Name() << " undisturbed: " << e.what() << "\n";
+        clean_bag.clear();
+      }
+    }
     for (const ppf::Mode mode : modes) {
       Row row;
       row.name = seq.Name();
@@ -131,8 +161,13 @@ std::vector<Row> RunStudy(const ppf::tools::StudyOptions& opts,
           row.run = ppf::tools::RunAndEvaluate(bag, config, mode, gt, tilt_after);
           if (!row.run.ape.ok) row.failure = "APE: " + row.run.ape.error;
           if (disturb.at_s >= 0.0) {
-            row.recovery = ppf::tools::ComputeRecovery(gt, row.run.trajectory, disturb.at_s,
-                                                       disturb.settle_s);
+            row.recovery =
+                ppf::tools::ComputeRecovery(gt, row.run.trajectory, disturb.at_s, disturb.settle_s);
+          }
+          if (!clean_bag.empty()) {
+            const auto clean =
+                ppf::tools::RunAndEvaluate(clean_bag, clean_config, mode, clean_gt, tilt_after);
+            if (clean.ape.ok) row.undisturbed_ape = clean.ape.stats.rmse;
           }
         } catch (const std::exception& e) {
           row.failure = e.what();
@@ -142,7 +177,7 @@ std::vector<Row> RunStudy(const ppf::tools::StudyOptions& opts,
         std::cerr << "ppf_accuracy_study: " << row.name << " " << row.mode
                   << " failed: " << row.failure << "\n";
       } else if (!save_dir.empty()) {
-        const std::string base = save_dir + "/" + seq.scene + "_" + seq.lidar + "_" + row.mode;
+        const std::string base = save_dir + "/" + seq.FileStem() + "_" + row.mode;
         ppf::WriteTum(base + ".tum", row.run.trajectory);
         std::ofstream csv(base + ".csv");
         ppf::tools::WriteStatsCsvHeader(csv);
@@ -224,7 +259,42 @@ int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after,
       std::cout << std::fixed << std::setprecision(3) << "heading " << rec.heading_at_settle_deg
                 << " deg (max " << rec.max_heading_deg << "), position " << rec.position_at_settle_m
                 << " m (max " << rec.max_position_m << "), tilt max " << rec.max_tilt_deg
-                << " deg (" << rec.max_tilt_settled_deg << " after), overruled " << r.run.summary.overruled << " scans\n";
+                << " deg (" << rec.max_tilt_settled_deg << " after), overruled "
+                << r.run.summary.overruled << " scans\n";
+    }
+  }
+  if (!disturb.sim_args.empty()) {
+    // The disturbance bound of the tests (test_disturbance): the same drive's APE undisturbed,
+    // times 1.2, plus 2 mm for runs whose undisturbed APE is a few millimetres.
+    constexpr double kFactor = 1.2, kSlackM = 0.002;
+    std::cout << std::defaultfloat << "\nAPE against the same drive undisturbed ("
+              << disturb.sim_args << "; bound <= " << kFactor << " x undisturbed + "
+              << kSlackM * 1000.0 << " mm):\n";
+    std::vector<std::string> modes;
+    for (const auto& r : rows) {
+      if (std::find(modes.begin(), modes.end(), r.mode) == modes.end()) modes.push_back(r.mode);
+    }
+    for (const std::string& mode : modes) {
+      int runs = 0, within = 0;
+      for (const auto& r : rows) {
+        if (r.mode != mode || !r.failure.empty()) continue;
+        const double ape = r.run.ape.stats.rmse, clean = r.undisturbed_ape;
+        std::cout << "  ";
+        if (!(clean > 0.0)) {
+          std::cout << "MISSED  " << r.name << " " << r.mode << ": no undisturbed run to compare\n";
+          ++runs;
+          continue;
+        }
+        const bool met = ape <= kFactor * clean + kSlackM;
+        ++runs;
+        within += met ? 1 : 0;
+        all_met = all_met && met;
+        std::cout << (met ? "met     " : "MISSED  ") << r.name << " " << r.mode << std::fixed
+                  << std::setprecision(4) << ": APE " << ape << " m = " << std::setprecision(2)
+                  << ape / clean << " x the undisturbed " << std::setprecision(4) << clean
+                  << " m\n";
+      }
+      std::cout << "  " << mode << ": " << within << " of " << runs << " within the bound\n";
     }
   }
   std::cout << "\n";
@@ -276,10 +346,10 @@ int main(int argc, char** argv) {
   const std::vector<ppf::Mode> modes = ParseModes(modes_arg);
   std::vector<ppf::tools::SequenceSpec> sequences;
   if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
+  sequences = ppf::tools::WithSeeds(sequences, opts.seeds);
   for (auto& seq : sequences) seq.sim_extra = disturb.sim_args;
   if (!save_dir.empty()) std::filesystem::create_directories(save_dir);
   const std::vector<Row> rows = RunStudy(opts, sequences, modes, save_dir, disturb);
-  const int failed =
-      PrintTable(rows, opts.EffectiveDuration(), opts.EffectiveTiltAfter(), disturb);
+  const int failed = PrintTable(rows, opts.EffectiveDuration(), opts.EffectiveTiltAfter(), disturb);
   return failed > 0 ? 1 : 0;  // a study reports; test_accuracy asserts the bounds
 }

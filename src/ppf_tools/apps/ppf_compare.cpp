@@ -2,9 +2,9 @@
 // run: stage timings, throughput, local map size, APE (SE(3) and position+yaw aligned), RPE, the
 // tilt of the estimated gravity, the final height error, and the targets.
 //
-//   ppf_compare                    # full: 60 s urban HDL-64 / urban HDL-32 / indoor VLP-16 / park HDL-32
-//   ppf_compare --short            # CI: shorter sequences, same table
-//   ppf_compare --tum-dir DIR      # also every run's trajectory, DIR/<scene>_<lidar>_<mode>.tum
+//   ppf_compare                # full: 60 s urban HDL-64, urban HDL-32, indoor VLP-16, park HDL-32
+//   ppf_compare --short        # CI: shorter sequences, same table
+//   ppf_compare --tum-dir DIR  # also every run's trajectory, DIR/<scene>_<lidar>_<mode>.tum
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
@@ -77,7 +77,7 @@ void WriteTrajectories(const std::string& dir, const std::vector<Row>& rows) {
   std::filesystem::create_directories(dir, ec);
   if (ec) Fail("--tum-dir " + dir + ": " + ec.message());
   for (const auto& r : rows) {
-    const std::string base = dir + "/" + r.seq.scene + "_" + r.seq.lidar + "_";
+    const std::string base = dir + "/" + r.seq.FileStem() + "_";
     for (const auto& [mode, run] : {std::pair<const char*, const ModeResult*>{"knn", &r.knn},
                                     std::pair<const char*, const ModeResult*>{"ppf", &r.ppf}}) {
       const std::string path = base + mode + ".tum";
@@ -126,9 +126,8 @@ void PrintModeRow(const std::string& name, const char* mode, const ModeResult& m
 // checked on HDL-64 for speed, everywhere for map and APE. False if one is missed.
 bool PrintRatiosAndCheckTargets(const Row& r, std::ostringstream* targets) {
   const std::string name = r.seq.Name();
-  const double speedup = r.knn.summary.scans_per_s > 0
-                             ? r.ppf.summary.scans_per_s / r.knn.summary.scans_per_s
-                             : 0;
+  const double speedup =
+      r.knn.summary.scans_per_s > 0 ? r.ppf.summary.scans_per_s / r.knn.summary.scans_per_s : 0;
   const double resid = r.ppf.summary.mean.residuals > 0
                            ? r.knn.summary.mean.residuals / r.ppf.summary.mean.residuals
                            : 0;
@@ -192,6 +191,7 @@ int main(int argc, char** argv) {
   }
   std::vector<ppf::tools::SequenceSpec> sequences;
   if (!ppf::tools::ParseSequenceList(opts.sequences, &sequences, &error)) Fail(error);
+  sequences = ppf::tools::WithSeeds(sequences, opts.seeds);
   const std::vector<Row> rows = RunBothModes(opts, sequences);
   if (!tum_dir.empty()) WriteTrajectories(tum_dir, rows);
 

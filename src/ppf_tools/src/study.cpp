@@ -66,6 +66,58 @@ bool ParseSequenceList(const std::string& list, std::vector<SequenceSpec>* out,
   return true;
 }
 
+bool ParseSeedList(const std::string& list, std::vector<int>* out, std::string* error) {
+  out->clear();
+  // A whole number >= 1 that fits an int, or false.
+  auto seed = [](const std::string& s, int* v) {
+    if (s.empty() || s.size() > 9 || !std::all_of(s.begin(), s.end(), [](char c) {
+          return std::isdigit(static_cast<unsigned char>(c));
+        })) {
+      return false;
+    }
+    *v = std::stoi(s);
+    return *v >= 1;
+  };
+  std::stringstream ss(list);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    const auto dash = item.find('-');
+    int first = 0, last = 0;
+    const bool ok = dash == std::string::npos
+                        ? seed(item, &first) && seed(item, &last)
+                        : seed(item.substr(0, dash), &first) && seed(item.substr(dash + 1), &last);
+    if (!ok || last < first) {
+      *error = "--seeds: '" + item +
+               "' is not a seed or a range A-B of seeds (whole numbers >= 1, A <= B)";
+      return false;
+    }
+    for (int s = first; s <= last; ++s) {
+      if (std::find(out->begin(), out->end(), s) != out->end()) {
+        *error = "--seeds: seed " + std::to_string(s) + " given twice";
+        return false;
+      }
+      out->push_back(s);
+    }
+  }
+  if (out->empty()) {
+    *error = "--seeds: no seeds given";
+    return false;
+  }
+  return true;
+}
+
+std::vector<SequenceSpec> WithSeeds(const std::vector<SequenceSpec>& sequences,
+                                    const std::vector<int>& seeds) {
+  std::vector<SequenceSpec> out;
+  for (const SequenceSpec& seq : sequences) {
+    for (const int seed : seeds) {
+      out.push_back(seq);
+      out.back().seed = seed;
+    }
+  }
+  return out;
+}
+
 int ParseStudyOption(int argc, char** argv, int* i, StudyOptions* opts, std::string* error) {
   const std::string a = argv[*i];
   auto value = [&](std::string* v) {
@@ -98,6 +150,9 @@ int ParseStudyOption(int argc, char** argv, int* i, StudyOptions* opts, std::str
       *error = "--duration must be positive";
       return -1;
     }
+  } else if (a == "--seeds") {
+    std::string list;
+    if (!value(&list) || !ParseSeedList(list, &opts->seeds, error)) return -1;
   } else if (a == "--workdir") {
     if (!value(&opts->workdir)) return -1;
   } else if (a == "--config-dir") {
@@ -144,6 +199,8 @@ std::string StudyOptionsHelp(const std::string& default_sequences) {
          default_sequences +
          ")\n"
          "  --duration S          sequence length in seconds (default 60, --short 10)\n"
+         "  --seeds LIST          ppf_sim seeds, e.g. 1-8 or 1,3,5: every sequence once per seed\n"
+         "                        (default 1; other seeds are named scene/lidar#seed)\n"
          "  --workdir DIR         where sequences are generated/reused (default: out/compare,\n"
          "                        shared by ppf_compare and ppf_accuracy_study)\n"
          "  --config-dir DIR      LiDAR presets <lidar>.yaml (default: the repository's config/)\n"
@@ -189,6 +246,7 @@ std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::
                            std::ostream& log, const std::string& log_prefix) {
   std::ostringstream name;
   name << seq.scene << "_" << seq.lidar << "_" << static_cast<int>(duration) << "s";
+  if (seq.seed != 1) name << "_seed" << seq.seed;
   if (!seq.sim_extra.empty()) {
     std::string extra = seq.sim_extra;
     for (char& ch : extra) {
@@ -203,8 +261,8 @@ std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::
   const bool ok = GenerateSequenceOnce(dir.string(), [&](const std::string& out) {
     std::ostringstream cmd;
     cmd << "ppf_sim --scene " << seq.scene << " --lidar " << seq.lidar << " --duration " << duration
-        << " --seed 1 --storage mcap " << seq.sim_extra << " --out '" << out << "' > '" << sim_log
-        << "' 2>&1";
+        << " --seed " << seq.seed << " --storage mcap " << seq.sim_extra << " --out '" << out
+        << "' > '" << sim_log << "' 2>&1";
     return std::system(cmd.str().c_str()) == 0;
   });
   if (!ok) {

@@ -18,12 +18,27 @@ struct SequenceSpec {
   std::string scene, lidar;
   // More ppf_sim options (the disturbances: "--jolt 8:5"); part of the sequence's directory name.
   std::string sim_extra;
-  std::string Name() const { return scene + "/" + lidar; }  // "urban/hdl64"
+  int seed = 1;  // ppf_sim --seed: another drive along the same kind of path
+  // "urban/hdl64", and "urban/hdl64#3" for seed 3 (seed 1 keeps the plain name).
+  std::string Name() const {
+    return scene + "/" + lidar + (seed == 1 ? "" : "#" + std::to_string(seed));
+  }
+  // File names of its outputs: "urban_hdl64", "urban_hdl64_seed3".
+  std::string FileStem() const {
+    return scene + "_" + lidar + (seed == 1 ? "" : "_seed" + std::to_string(seed));
+  }
 };
 
 // "scene:lidar[,scene:lidar...]" with scenes and LiDARs that ppf_sim knows. False and *error
 // (naming the bad item and the valid names) for anything else, including an empty list.
 bool ParseSequenceList(const std::string& list, std::vector<SequenceSpec>* out, std::string* error);
+
+// "1-8", "1,3,5" or "2,4-6": the ppf_sim seeds a study runs every sequence with, each at least 1,
+// in the order given, without repeats. False and *error (naming the bad item) otherwise.
+bool ParseSeedList(const std::string& list, std::vector<int>* out, std::string* error);
+// Every sequence once per seed, sequence-major (urban#1, urban#2, ..., indoor#1, ...).
+std::vector<SequenceSpec> WithSeeds(const std::vector<SequenceSpec>& sequences,
+                                    const std::vector<int>& seeds);
 
 // Options every study command takes. ParseStudyOption consumes argv[*i] (and its value) if it is
 // one of them: returns 1 when consumed, 0 when the argument is not a study option, -1 on an error
@@ -39,6 +54,9 @@ struct StudyOptions {
   // 10 s, docs/decisions.md, "Accuracy and gravity bounds"; a --short sequence is only 10 s long,
   // so it looks from 2 s on instead). < 0: that default.
   double tilt_after = -1.0;
+  // --seeds: every sequence is generated and run once per seed. A figure measured on one drive
+  // can be that drive's luck; the same scene and LiDAR on other seeds tells.
+  std::vector<int> seeds{1};
 
   double EffectiveDuration() const { return duration > 0 ? duration : (short_form ? 10.0 : 60.0); }
   double EffectiveTiltAfter() const {
@@ -65,10 +83,10 @@ std::string StudyOptionsHelp(const std::string& default_sequences);
 bool GenerateSequenceOnce(const std::string& dir,
                           const std::function<bool(const std::string& out)>& generate);
 
-// The sequence's directory under `workdir` (<scene>_<lidar>_<seconds>s), generated with ppf_sim
-// (seed 1, MCAP) unless a complete one is already there. ppf_sim is taken from PATH. Progress goes
-// to `log`, each line starting with `log_prefix`. Throws std::runtime_error if ppf_sim fails (its
-// log file is named in the message).
+// The sequence's directory under `workdir` (<scene>_<lidar>_<seconds>s, then _seed<N> for a seed
+// other than 1, then the disturbance), generated with ppf_sim (seq.seed, MCAP) unless a complete
+// one is already there. ppf_sim is taken from PATH. Progress goes to `log`, each line starting with
+// `log_prefix`. Throws std::runtime_error if ppf_sim fails (its log file is named in the message).
 std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::string& workdir,
                            std::ostream& log, const std::string& log_prefix = "");
 
@@ -116,10 +134,10 @@ struct Recovery {
   size_t poses_after = 0;            // poses from t_s + settle_s on
   double heading_at_settle_deg = 0;  // the first of them
   double position_at_settle_m = 0;
-  double max_heading_deg = 0;        // all of them
+  double max_heading_deg = 0;  // all of them
   double max_position_m = 0;
-  double max_tilt_deg = 0;           // from t_s on
-  double max_tilt_settled_deg = 0;   // from t_s + settle_s on
+  double max_tilt_deg = 0;          // from t_s on
+  double max_tilt_settled_deg = 0;  // from t_s + settle_s on
 };
 Recovery ComputeRecovery(const Trajectory& gt, const Trajectory& est, double t_s, double settle_s);
 

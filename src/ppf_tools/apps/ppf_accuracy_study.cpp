@@ -283,6 +283,7 @@ int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after,
         if (!(clean > 0.0)) {
           std::cout << "MISSED  " << r.name << " " << r.mode << ": no undisturbed run to compare\n";
           ++runs;
+          all_met = false;
           continue;
         }
         const bool met = ape <= kFactor * clean + kSlackM;

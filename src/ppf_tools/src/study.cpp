@@ -91,6 +91,12 @@ bool ParseSeedList(const std::string& list, std::vector<int>* out, std::string* 
                "' is not a seed or a range A-B of seeds (whole numbers >= 1, A <= B)";
       return false;
     }
+    // Each seed is a simulated drive and a run per mode: a list past this is a typo.
+    constexpr int kMaxSeeds = 1000;
+    if (last - first >= kMaxSeeds || out->size() + static_cast<size_t>(last - first) >= kMaxSeeds) {
+      *error = "--seeds: more than " + std::to_string(kMaxSeeds) + " seeds";
+      return false;
+    }
     for (int s = first; s <= last; ++s) {
       if (std::find(out->begin(), out->end(), s) != out->end()) {
         *error = "--seeds: seed " + std::to_string(s) + " given twice";

@@ -172,6 +172,10 @@ TEST(StudySeeds, ParsedExpandedAndGeneratedPerSeed) {
   }
   EXPECT_FALSE(ppf::tools::ParseSeedList("1-3,2", &seeds, &error));
   EXPECT_EQ(error, "--seeds: seed 2 given twice");
+  EXPECT_FALSE(ppf::tools::ParseSeedList("1-999999999", &seeds, &error));  // no hang either
+  EXPECT_EQ(error, "--seeds: more than 1000 seeds");
+  ASSERT_TRUE(ppf::tools::ParseSeedList("1-1000", &seeds, &error)) << error;
+  EXPECT_EQ(seeds.size(), 1000u);
 
   std::vector<ppf::tools::SequenceSpec> seqs;
   ASSERT_TRUE(ppf::tools::ParseSequenceList("urban:vlp16,park:hdl32", &seqs, &error)) << error;

@@ -128,7 +128,7 @@ std::vector<Row> RunStudy(const ppf::tools::StudyOptions& opts,
       failure = e.what();
     }
     // With a disturbance, the same drive undisturbed: the disturbed run's APE is judged against
-    // it (at most 1.2x, as test_disturbance judges it).
+    // it (DisturbanceBound).
     std::string clean_bag;
     ppf::Config clean_config;
     ppf::Trajectory clean_gt;
@@ -264,12 +264,10 @@ int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after,
     }
   }
   if (!disturb.sim_args.empty()) {
-    // The disturbance bound of the tests (test_disturbance): the same drive's APE undisturbed,
-    // times 1.2, plus 2 mm for runs whose undisturbed APE is a few millimetres.
-    constexpr double kFactor = 1.2, kSlackM = 0.002;
+    const ppf::tools::DisturbanceBound bound;
     std::cout << std::defaultfloat << "\nAPE against the same drive undisturbed ("
-              << disturb.sim_args << "; bound <= " << kFactor << " x undisturbed + "
-              << kSlackM * 1000.0 << " mm):\n";
+              << disturb.sim_args << "; bound <= " << bound.factor << " x undisturbed + "
+              << bound.slack_m * 1000.0 << " mm):\n";
     std::vector<std::string> modes;
     for (const auto& r : rows) {
       if (std::find(modes.begin(), modes.end(), r.mode) == modes.end()) modes.push_back(r.mode);
@@ -286,7 +284,7 @@ int PrintTable(const std::vector<Row>& rows, double duration, double tilt_after,
           all_met = false;
           continue;
         }
-        const bool met = ape <= kFactor * clean + kSlackM;
+        const bool met = ape <= bound.Limit(clean);
         ++runs;
         within += met ? 1 : 0;
         all_met = all_met && met;

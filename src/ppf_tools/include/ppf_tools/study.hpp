@@ -166,6 +166,15 @@ struct GravityBound {
   bool TiltMet(const ModeRun& run) const;
 };
 
+// The bound of a disturbance the LiDAR must correct (issue 27; test_disturbance, and
+// ppf_accuracy_study --disturb): the disturbed run's SE(3) APE at most `factor` times the same
+// drive's undisturbed APE, plus slack_m for runs whose undisturbed APE is a few millimetres.
+struct DisturbanceBound {
+  double factor = 1.2;
+  double slack_m = 0.002;
+  double Limit(double undisturbed_ape_m) const { return factor * undisturbed_ape_m + slack_m; }
+};
+
 // One line per bound, the way the study commands print them:
 //   "  met     urban/vlp16 knn: position+yaw APE <value> <= 1.5 x SE(3) APE + 0.05 m = <limit>"
 //   "  MISSED  urban/vlp16 knn: max tilt after 10 s <value> <= 0.2 deg"

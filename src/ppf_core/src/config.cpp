@@ -275,7 +275,8 @@ void ValidatePreprocessMapAndTime(Config* c, Fixer& fix) {
   fix(!(c->map.min_point_distance >= 0.0), "map.min_point_distance", &c->map.min_point_distance,
       0.0);
   fix(!(c->map.radius >= 0.0), "map.radius", &c->map.radius, 0.0);
-  fix(!(c->time.scan_period_s > 0.0), "time.scan_period", &c->time.scan_period_s, 0.1);
+  fix(!(c->time.scan_period_s > 0.0 && c->time.scan_period_s <= kMaxScanPeriodS),
+      "time.scan_period", &c->time.scan_period_s, 0.1);
   fix(!(c->time.unit_scale_s >= 0.0), "time.unit_scale", &c->time.unit_scale_s, 0.0);
   fix(!(c->imu.auto_wait_s >= 0.0), "imu.auto_wait", &c->imu.auto_wait_s, 2.0);
 }

@@ -125,9 +125,11 @@ preprocess: {scan_voxel_size: 0.0001}
 map: {resolution: 0}
 iekf: {max_iterations: 0}
 knn: {k: 1}
+time: {scan_period: 1e300}
 )", &c);
   ASSERT_TRUE(r.ok) << r.error;
-  EXPECT_EQ(r.warnings.size(), 4u);
+  EXPECT_EQ(r.warnings.size(), 5u);
+  EXPECT_EQ(c.time.scan_period_s, 0.1);
   EXPECT_GE(c.preprocess.scan_voxel_size, 0.01);
   EXPECT_GE(c.map.resolution, 0.05);
   EXPECT_GE(c.iekf.max_iterations, 1);

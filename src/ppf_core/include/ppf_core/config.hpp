@@ -37,10 +37,15 @@ struct TimeFieldOptions {
   StampPosition stamp = StampPosition::kAuto;  // which end of the sweep the header stamp marks
   NoTimePolicy no_time_policy = NoTimePolicy::kAzimuth;
   // Spin period: the azimuth estimate's, and twice it bounds the point times a sweep may have
-  // (time_field.hpp: later ones are dropped and counted).
+  // (time_field.hpp: later ones are dropped and counted). In (0, kMaxScanPeriodS]; any other
+  // value is not a LiDAR's and the decoder uses 0.1 s (config validation says so).
   double scan_period_s = 0.1;
   bool azimuth_clockwise = true; // Velodyne/Ouster spin clockwise seen from above
 };
+// The longest spin period taken as one: slow scanners (a nodding or rotated 2D LiDAR) take
+// seconds; an infinite or astronomical period would make every azimuth time non-finite and the
+// sweep window unbounded.
+constexpr double kMaxScanPeriodS = 10.0;
 
 // --- options of voxel_map.hpp (the kNN map) -----------------------------------------------------
 enum class NearbyType { kCenter = 1, kNearby7 = 7, kNearby19 = 19, kNearby27 = 27 };

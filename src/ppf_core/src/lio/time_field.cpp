@@ -364,7 +364,7 @@ void ApplyNoTimePolicy(const TimeFieldOptions& options, double stamp_s, DecodedS
     out->note = "no time field: scan not de-skewed";
     return;
   }
-  const double period = options.scan_period_s > 0.0 ? options.scan_period_s : 0.1;
+  const double period = options.scan_period_s;  // usable: the constructor checked it
   const double start = options.stamp == StampPosition::kEnd ? stamp_s - period : stamp_s;
   const double a0 = std::atan2(out->points.front().p.y(), out->points.front().p.x());
   for (TimedPoint& tp : out->points) {
@@ -448,7 +448,18 @@ std::string ValidateCloudLayout(const CloudView& cloud) {
 }
 
 TimeFieldDecoder::TimeFieldDecoder(const TimeFieldOptions& options, LogCallback log)
-    : options_(options), log_(std::move(log)) {}
+    : options_(options), log_(std::move(log)) {
+  // The core's config is validated already; a caller of the decoder alone may pass anything.
+  if (!(options_.scan_period_s > 0.0 && options_.scan_period_s <= kMaxScanPeriodS)) {
+    if (log_) {
+      std::ostringstream os;
+      os << "scan period " << options_.scan_period_s << " s is not in (0, " << kMaxScanPeriodS
+         << "]: using 0.1 s";
+      log_(LogLevel::kWarn, os.str());
+    }
+    options_.scan_period_s = 0.1;
+  }
+}
 
 void TimeFieldDecoder::Detect(const CloudView& cloud, const FieldDesc* time_field,
                               const std::vector<double>& raw) {
@@ -560,7 +571,7 @@ bool TimeFieldDecoder::Decode(const CloudView& cloud, DecodedScan* out, std::str
     }
     // Two scan periods: a sweep that takes longer than the configured period (a slower LiDAR
     // than configured, packet delays) keeps its points.
-    const double span = 2.0 * (options_.scan_period_s > 0.0 ? options_.scan_period_s : 0.1);
+    const double span = 2.0 * options_.scan_period_s;
     times.base = TimeBase(info_, cloud.stamp_s, raw_t_, span);
     times.scale = info_.unit_scale_s;
     SetPlausibleWindow(info_, cloud.stamp_s, span, &times);

@@ -190,6 +190,54 @@ TEST(TimeField, NoTimeFieldAzimuthEstimate) {
   }
 }
 
+// A period that is no LiDAR's (infinite, astronomical, NaN, not positive) is replaced by 0.1 s
+// with a warning: with it the azimuth estimate made every point time infinite (a fuzzer's find).
+TEST(TimeField, AnUnusableScanPeriodFallsBackToTheDefaultWithAWarning) {
+  test::LidarModel m;
+  m.rings = 4;
+  m.azimuth_steps = 360;
+  const auto pose = [](double) { return Eigen::Isometry3d::Identity(); };
+  const auto pts =
+      test::SimulateScan(test::MakeRoomScene(), pose, Eigen::Isometry3d::Identity(), 7.0, m);
+  TimeEncoding enc;
+  enc.name = "";
+  const test::CloudBuffer cloud = test::MakeCloud(pts, 7.0, pts.back().t, enc);
+  for (const double period : {std::numeric_limits<double>::infinity(), 1e300, 10.5,
+                              std::numeric_limits<double>::quiet_NaN(), 0.0, -0.1}) {
+    TimeFieldOptions opt;
+    opt.scan_period_s = period;
+    std::vector<std::string> warnings;
+    TimeFieldDecoder decoder(opt, [&](LogLevel l, const std::string& text) {
+      if (l == LogLevel::kWarn && text.find("scan period") != std::string::npos) {
+        warnings.push_back(text);
+      }
+    });
+    DecodedScan scan;
+    std::string error;
+    ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error)) << period;
+    ASSERT_EQ(warnings.size(), 1u) << period;
+    EXPECT_NE(warnings[0].find("using 0.1 s"), std::string::npos) << warnings[0];
+    ASSERT_EQ(scan.points.size(), pts.size()) << period;
+    for (size_t i = 0; i < pts.size(); ++i) {
+      ASSERT_NEAR(scan.points[i].t, pts[i].t, 1e-4) << period << " point " << i;
+    }
+    EXPECT_GE(scan.t_begin, 7.0 - 1e-9);
+    EXPECT_LE(scan.t_end, 7.1 + 1e-9);
+  }
+  // The longest period taken as one is kept.
+  TimeFieldOptions slow;
+  slow.scan_period_s = kMaxScanPeriodS;
+  int warnings = 0;
+  TimeFieldDecoder decoder(slow, [&](LogLevel l, const std::string& text) {
+    warnings += l == LogLevel::kWarn && text.find("scan period") != std::string::npos;
+  });
+  DecodedScan scan;
+  std::string error;
+  ASSERT_TRUE(decoder.Decode(cloud.view, &scan, &error));
+  EXPECT_EQ(warnings, 0);
+  EXPECT_GT(scan.t_end, 7.0 + 1.0);  // the estimate spreads the sweep over 10 s
+}
+
 CloudView GoodView(const test::CloudBuffer& c) { return c.view; }
 
 TEST(TimeField, RejectsMalformedClouds) {

@@ -183,9 +183,13 @@ double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* t
   // Each scan propagated across part of a bridged gap widens for that part: widened all at once,
   // the first scan would take the whole gap's uncertainty for the few milliseconds it crossed,
   // and the scans inside the gap none.
+  double bridged_s = 0.0;  // not imu_gap_s: the scan LIO resumes with has that too (ResumeLio)
   while (!bridged_gaps.empty() && bridged_gaps.front().begin_s < t_end) {
     BridgedGap& gap = bridged_gaps.front();
-    if (gap.widened_s == 0.0) r->imu_gap_s = std::max(r->imu_gap_s, gap.length_s);
+    if (gap.widened_s == 0.0) {
+      r->imu_gap_s = std::max(r->imu_gap_s, gap.length_s);
+      bridged_s = std::max(bridged_s, gap.length_s);
+    }
     const double crossed = std::min(t_end - gap.begin_s, gap.length_s);
     if (crossed > gap.widened_s) {
       WidenForGap(gap.widened_s, crossed);
@@ -194,9 +198,9 @@ double LioPpf::Impl::Propagate(const DecodedScan& scan, bool lidar, PoseTrace* t
     if (crossed < gap.length_s) break;
     bridged_gaps.pop_front();
   }
-  if (r->imu_gap_s > 0.0) {
+  if (bridged_s > 0.0) {
     std::ostringstream os;
-    os << "IMU gap of " << r->imu_gap_s << " s bridged";
+    os << "IMU gap of " << bridged_s << " s bridged";
     Append(&r->reason, os.str());
   }
   return t_end;

@@ -365,6 +365,8 @@ TEST(EndToEnd, GapLongerThanTheBridgeReanchorsWithoutReset) {
       ++resumed;
       EXPECT_NEAR(r.imu_gap_s, 2.0, 0.02);
       EXPECT_NE(r.reason.find("LIO resumed"), std::string::npos) << r.reason;
+      // Not bridged: the scans across it were LiDAR-only, and the result must not say otherwise.
+      EXPECT_EQ(r.reason.find("bridged"), std::string::npos) << r.reason;
       EXPECT_TRUE(r.lio_resumed);
     }
     if (r.pose_valid && r.stamp_s > o.gap_begin + o.gap_length) ++after_gap;

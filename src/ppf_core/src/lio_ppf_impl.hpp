@@ -252,6 +252,7 @@ struct LioPpf::Impl {
   // with it, not with the chord over the gap.
   bool has_scan_velocity = false;
   Eigen::Vector3d scan_velocity_world = Eigen::Vector3d::Zero();
+  double speed_before_gap = 0.0;  // the motion model's when the search started (the report's)
   double fallback_dt = 0.0;  // interval of the last LiDAR-only scan (velocity at resume)
   StateCov P_before_loss = StateCov::Identity();  // biases' and gravity's, kept for the resume
   // A scan may resume LIO if the first IMU sample back is at most this much after its start: the

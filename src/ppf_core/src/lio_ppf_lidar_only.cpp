@@ -316,6 +316,7 @@ void LioPpf::Impl::EstimateScanVelocity(const DecodedScan& scan, const std::vect
   const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
   // The filter's speed before the gap, along the re-localized heading.
   const Eigen::Vector3d v_body = motion.pose().linear().transpose() * motion.velocity_world();
+  speed_before_gap = v_body.norm();
   ImuKnot knot;
   knot.t = t_end;
   knot.R = state.R_world_imu;

@@ -935,7 +935,7 @@ void LioPpf::Impl::ReportRelocalization(ScanResult* r) {
      << r->fit;
   if (has_scan_velocity) {
     os << ", speed " << scan_velocity_world.norm() << " m/s from the scan's own smear ("
-       << motion.velocity_world().norm() << " before the gap)";
+       << speed_before_gap << " before the gap)";
   }
   os << " (the map is extended again once LIO confirms the pose)";
   Append(&r->reason, os.str());

@@ -168,16 +168,22 @@ TEST(TimeField, NoTimeFieldNoDeskewUsesStamp) {
   EXPECT_EQ(warnings, 1);  // said loudly, once
 }
 
-TEST(TimeField, NoTimeFieldAzimuthEstimate) {
+// A still room scan from 7.0 s, 4 rings x 360 steps, without a time field: the azimuth
+// estimate's input (the true point times in `pts`).
+test::CloudBuffer RoomScanWithoutTimeField(std::vector<SimPoint>* pts) {
   test::LidarModel m;
   m.rings = 4;
   m.azimuth_steps = 360;
   const auto pose = [](double) { return Eigen::Isometry3d::Identity(); };
-  const auto pts =
-      test::SimulateScan(test::MakeRoomScene(), pose, Eigen::Isometry3d::Identity(), 7.0, m);
+  *pts = test::SimulateScan(test::MakeRoomScene(), pose, Eigen::Isometry3d::Identity(), 7.0, m);
   TimeEncoding enc;
   enc.name = "";
-  const test::CloudBuffer cloud = test::MakeCloud(pts, 7.0, pts.back().t, enc);
+  return test::MakeCloud(*pts, 7.0, pts->back().t, enc);
+}
+
+TEST(TimeField, NoTimeFieldAzimuthEstimate) {
+  std::vector<SimPoint> pts;
+  const test::CloudBuffer cloud = RoomScanWithoutTimeField(&pts);
   TimeFieldDecoder decoder;  // default policy: azimuth, clockwise, 0.1 s
   DecodedScan scan;
   std::string error;
@@ -193,15 +199,8 @@ TEST(TimeField, NoTimeFieldAzimuthEstimate) {
 // A period that is no LiDAR's (infinite, astronomical, NaN, not positive) is replaced by 0.1 s
 // with a warning: with it the azimuth estimate made every point time infinite (a fuzzer's find).
 TEST(TimeField, AnUnusableScanPeriodFallsBackToTheDefaultWithAWarning) {
-  test::LidarModel m;
-  m.rings = 4;
-  m.azimuth_steps = 360;
-  const auto pose = [](double) { return Eigen::Isometry3d::Identity(); };
-  const auto pts =
-      test::SimulateScan(test::MakeRoomScene(), pose, Eigen::Isometry3d::Identity(), 7.0, m);
-  TimeEncoding enc;
-  enc.name = "";
-  const test::CloudBuffer cloud = test::MakeCloud(pts, 7.0, pts.back().t, enc);
+  std::vector<SimPoint> pts;
+  const test::CloudBuffer cloud = RoomScanWithoutTimeField(&pts);
   for (const double period : {std::numeric_limits<double>::infinity(), 1e300, 10.5,
                               std::numeric_limits<double>::quiet_NaN(), 0.0, -0.1}) {
     TimeFieldOptions opt;

@@ -116,7 +116,8 @@ struct LioPpf::Impl {
   void Deskew(const DecodedScan& scan, const std::vector<TimedPoint>& pts, const PoseTrace& trace,
               double t_end);
   void StartMap(bool lidar, double t_end, ScanResult* r);
-  void SplitScan(ScanResult* r);
+  void SplitScan(bool lidar, ScanResult* r);
+  bool PrefetchBesideSplit(bool lidar) const;
   IekfReport Register(const DecodedScan& scan, const std::vector<TimedPoint>& pts, double t_end,
                       bool lidar, Eigen::Isometry3d* T_world_lidar_out, ScanResult* r);
   IekfReport RedeskewGapTurn(const DecodedScan& scan, const std::vector<TimedPoint>& pts,
@@ -253,7 +254,7 @@ struct LioPpf::Impl {
   bool has_scan_velocity = false;
   Eigen::Vector3d scan_velocity_world = Eigen::Vector3d::Zero();
   double speed_before_gap = 0.0;  // the motion model's when the search started (the report's)
-  double fallback_dt = 0.0;  // interval of the last LiDAR-only scan (velocity at resume)
+  double fallback_dt = 0.0;       // interval of the last LiDAR-only scan (velocity at resume)
   StateCov P_before_loss = StateCov::Identity();  // biases' and gravity's, kept for the resume
   // A scan may resume LIO if the first IMU sample back is at most this much after its start: the
   // propagation holds that sample for the bit before it (a few IMU periods).

@@ -2,13 +2,19 @@
 // (first scan) or register the scan (coarse alignment when LiDAR-only, PPF split, iterated EKF),
 // judge the update, extend the map, and fill the result in the gravity-aligned world frame.
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <sstream>
 #include <vector>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include "lio_ppf_impl.hpp"
 #include "ppf_core/lio/deskew.hpp"
 #include "ppf_core/lio/so3.hpp"
+#include "ppf_core/ppf/ipca.hpp"
 
 namespace ppf {
 
@@ -84,7 +90,7 @@ ScanResult LioPpf::Impl::ProcessOne(QueuedScan& q) {
     if (Relocating()) EstimateScanVelocity(scan, pts, t_end);
     r.timings.guesses = MsSince(t0);
   }
-  SplitScan(&r);
+  SplitScan(lidar, &r);
   Eigen::Isometry3d T_world_lidar;
   const IekfReport rep = Register(scan, pts, t_end, lidar, &T_world_lidar, &r);
   SetUpdateStatus(rep, lidar, &r);
@@ -430,14 +436,58 @@ void LioPpf::Impl::StartMap(bool lidar, double t_end, ScanResult* r) {
 // re-localized after a long gap is split too: its guesses were aligned on the kNN map (and its
 // velocity probe on the patches), so its prediction is the re-localized pose, and the skeleton's
 // rows on the walls and the ground pin what the scattered points alone leave loose (its height).
-void LioPpf::Impl::SplitScan(ScanResult* r) {
+void LioPpf::Impl::SplitScan(bool lidar, ScanResult* r) {
   if (tracker) {
     const auto t0 = Clock::now();
-    tracker->Split(&frame);
+    if (PrefetchBesideSplit(lidar)) {
+      // The pre-fit runs on one thread; the other searches the kNN neighbours of the scan's
+      // points at the predicted pose meanwhile, which the update's first iteration then reuses
+      // for the points the split leaves scattered (KnnResidualProvider::Prefetch). The update
+      // starts from that pose, so its rows are the ones it would have searched itself.
+      std::atomic<bool> split_done{false};
+#pragma omp parallel num_threads(2)
+      {
+#ifdef _OPENMP
+        const int thread = omp_get_thread_num();
+#else
+        const int thread = 0;
+#endif
+        if (thread == 0) {
+          tracker->Split(&frame);
+          split_done.store(true, std::memory_order_release);
+        } else {
+          std::vector<Plane> guessed;
+          for (const PlaneGuess& g :
+               tracker->window().GuessesInFrame(frame.T_world_lidar_predicted)) {
+            guessed.push_back(g.plane);
+          }
+          const PpfConfig& c = tracker->config();
+          knn->Prefetch(frame, frame.T_world_lidar_predicted, guessed,
+                        c.delta * std::max(1.0, c.semi_band_factor), split_done);
+        }
+      }
+    } else {
+      tracker->Split(&frame);
+    }
     frame.labels.resize(frame.points_lidar.size(), PointLabel::kScattered);
     r->timings.ppf = MsSince(t0);
   }
   CountLabels(r);
+}
+
+// Whether this scan's pre-fit gets the kNN prefetch beside it: an IMU-predicted scan (a
+// LiDAR-only one is registered from its guesses, not from the predicted pose) on two threads or
+// more, a map to search, and a scan small enough that the pre-fit takes no OpenMP team of its own
+// (iPCA's moments are a reduction above kIpcaParallelPoints, whose sums would change with one
+// thread less: the split must be the one it is without the prefetch).
+bool LioPpf::Impl::PrefetchBesideSplit(bool lidar) const {
+#ifdef _OPENMP
+  const int threads = config.num_threads > 0 ? config.num_threads : omp_get_max_threads();
+#else
+  const int threads = 1;
+#endif
+  return tracker != nullptr && !lidar && threads >= 2 && map.size() > 0 &&
+         static_cast<long>(frame.points_lidar.size()) <= kIpcaParallelPoints;
 }
 
 // The de-skewed frame made ready for the split and the update, all points scattered so far.
@@ -684,7 +734,7 @@ IekfReport LioPpf::Impl::RedeskewVelocity(const DecodedScan& scan,
   if (rep.skipped || !(scan.has_time_field || scan.times_estimated)) return rep;
   if (deskew_trace.knots.empty() || pts.empty()) return rep;
   constexpr int kPasses = 3;
-  constexpr double kMinSmearM = 0.01;   // the correction's displacement over the sweep
+  constexpr double kMinSmearM = 0.01;  // the correction's displacement over the sweep
   constexpr double kSettledM = 0.002;  // a pass that changes it by less is the last
   double t_first = t_end;
   for (const TimedPoint& tp : pts) t_first = std::min(t_first, tp.t);

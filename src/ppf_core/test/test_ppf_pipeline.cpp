@@ -23,7 +23,7 @@ struct SimRun {
   std::vector<ScanResult> results;
 };
 
-SimRun Simulate(Config config, double duration) {
+SimRun Simulate(Config config, double duration, int threads = 1) {
   const test::PoseFn pose = test::WiggleTrajectory(1.2);
   const test::Scene scene = test::MakeRoomScene();
   test::LidarModel lidar;
@@ -31,7 +31,7 @@ SimRun Simulate(Config config, double duration) {
   std::mt19937 rng(7);
   std::normal_distribution<double> n(0.0, 1.0);
   config.extrinsic.T_imu_lidar = test::MakePose(Eigen::Vector3d(0.1, -0.05, 0.2), 0, 0, 0.2);
-  config.num_threads = 1;
+  config.num_threads = threads;
   LioPpf lio(config);
   SimRun out;
   double t_imu = 0.0;
@@ -129,6 +129,22 @@ TEST(PpfPipeline, MapIsSmallerThanKnnMode) {
       "PPF %.4f m\n",
       knn_map, ppf_map, 100.0 * ppf_map / std::max<size_t>(1, knn_map), ApeRmse(knn), ApeRmse(ppf));
   EXPECT_LT(ppf_map, knn_map);
+}
+
+// On two threads the pre-fit has the kNN searches beside it (KnnResidualProvider::Prefetch);
+// the trajectory is bit for bit the one thread's.
+TEST(PpfPipeline, TwoThreadsGiveTheOneThreadTrajectoryBitForBit) {
+  Config config;
+  config.mode = Mode::kPpf;
+  config.ppf = PpfConfigForBeams(16);
+  const SimRun one = Simulate(config, 3.0, 1);
+  const SimRun two = Simulate(config, 3.0, 2);
+  ASSERT_GT(one.est.size(), 15u);
+  ASSERT_EQ(one.est.size(), two.est.size());
+  for (size_t i = 0; i < one.est.size(); ++i) {
+    EXPECT_EQ(one.est[i].stamp_s, two.est[i].stamp_s);
+    EXPECT_TRUE(one.est[i].T.matrix() == two.est[i].T.matrix()) << "scan " << i;
+  }
 }
 
 TEST(PpfPipeline, YamlPpfSectionReachesTheConfig) {

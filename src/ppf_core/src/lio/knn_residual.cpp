@@ -49,6 +49,79 @@ void KnnResidualProvider::BeginScan(const ScanFrame& frame) {
     }
   }
   fits_.assign(indices_.size(), CachedFit());
+  // The searches Prefetch made on this frame (at most once: the map changes after the scan).
+  prefetched_ = prefetched_scattered_ = 0;
+  if (prefetch_frame_ == &frame && prefetch_.size() == frame.points_lidar.size()) {
+    for (const CachedFit& f : prefetch_) prefetched_ += f.searched ? 1 : 0;
+    if (fits_.size() == indices_.size()) {
+      for (size_t j = 0; j < indices_.size(); ++j) {
+        const CachedFit& f = prefetch_[indices_[j]];
+        if (!f.searched) continue;
+        fits_[j] = f;
+        ++prefetched_scattered_;
+      }
+    }
+  }
+  prefetch_frame_ = nullptr;
+}
+
+void KnnResidualProvider::SearchAndFit(const VoxelMap& map, const Eigen::Vector3f& q_w, size_t k,
+                                       std::vector<Eigen::Vector3f>* nn, CachedFit* fit) const {
+  const bool found = map.GetClosest(q_w, k, options_.max_neighbor_distance, nn) >= k;
+  fit->searched = true;
+  fit->found = found;
+  fit->searched_at = q_w;
+  if (!found) return;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  double d = 0.0;
+  fit->ok = FitPlane(*nn, options_.plane_threshold, &normal, &d, options_.min_plane_spread);
+  std::copy(nn->begin(), nn->end(), fit->nn);
+  fit->count = nn->size();
+  fit->normal = normal;
+  fit->d = d;
+}
+
+const std::vector<size_t>& KnnResidualProvider::PrefetchOrder(
+    const ScanFrame& frame, const std::vector<Plane>& likely_planes, double band) {
+  order_.clear();
+  order_.reserve(frame.points_lidar.size());
+  later_.clear();
+  const float fband = static_cast<float>(band);
+  for (size_t i = 0; i < frame.points_lidar.size(); ++i) {
+    const Eigen::Vector3f& p = frame.points_lidar[i];
+    if (!frame.GivesResidual(p)) continue;
+    bool near = false;
+    for (const Plane& pl : likely_planes) {
+      const float dist = static_cast<float>(pl.n.x()) * p.x() +
+                         static_cast<float>(pl.n.y()) * p.y() +
+                         static_cast<float>(pl.n.z()) * p.z() + static_cast<float>(pl.d);
+      if (std::abs(dist) < fband) {
+        near = true;
+        break;
+      }
+    }
+    (near ? later_ : order_).push_back(i);
+  }
+  order_.insert(order_.end(), later_.begin(), later_.end());
+  return order_;
+}
+
+void KnnResidualProvider::Prefetch(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+                                   const std::vector<Plane>& likely_planes, double band,
+                                   const std::atomic<bool>& stop) {
+  prefetch_frame_ = nullptr;
+  const size_t k = static_cast<size_t>(std::max(3, options_.k));
+  if (frame.map == nullptr || frame.map->size() == 0 || k > kMaxCachedK) return;
+  prefetch_.assign(frame.points_lidar.size(), CachedFit());
+  PrefetchOrder(frame, likely_planes, band);
+  std::vector<Eigen::Vector3f> nn;
+  for (size_t i : order_) {
+    if (stop.load(std::memory_order_acquire)) break;
+    // The query exactly as ComputeRows forms it.
+    const Eigen::Vector3d p_w = T_world_lidar * frame.points_lidar[i].cast<double>();
+    SearchAndFit(*frame.map, p_w.cast<float>(), k, &nn, &prefetch_[i]);
+  }
+  prefetch_frame_ = &frame;
 }
 
 void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
@@ -83,6 +156,12 @@ void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
       // The last search's neighbours while the point stays near where it was made: a later
       // iteration moves most points by far less than the map's point spacing.
       if (keep && fit->searched && (q_w - fit->searched_at).squaredNorm() < keep2) {
+        if (!fit->found || !fit->ok) continue;
+        normal = fit->normal;
+        d = fit->d;
+      } else if (fit != nullptr && fit->searched && fit->searched_at == q_w) {
+        // Searched at this very point already (Prefetch, or an iteration that did not move):
+        // the search would find the same neighbours, the fit the same plane.
         if (!fit->found || !fit->ok) continue;
         normal = fit->normal;
         d = fit->d;

@@ -1,8 +1,10 @@
 // kNN point-to-plane residuals: the plane validity test of the k neighbours, and the range
-// limit on the points that give rows, and the neighbours kept between a scan's iterations.
+// limit on the points that give rows, the neighbours kept between a scan's iterations, and the
+// searches made ahead of the split (Prefetch).
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <vector>
 
@@ -134,6 +136,95 @@ TEST(KnnResidual, SearchesEveryIterationWhenKeepingIsOff) {
   ASSERT_GT(fresh.size(), 100u);
   EXPECT_TRUE(SameRows(second, fresh));
   EXPECT_FALSE(SameRows(second, first));  // the kept planes would have been the first search's
+}
+
+// Prefetch searches the points at the predicted pose before the split has labelled them: the
+// first iteration reuses the searches of the points that are scattered, and its rows are exactly
+// a fresh search's; a later iteration at another pose searches again. Only the next BeginScan of
+// the same frame reads them, and a query at another pose never does.
+TEST(KnnResidual, PrefetchedSearchesGiveExactlyTheRowsOfAFreshSearch) {
+  KeepCase c;
+  const Eigen::Isometry3d far = [] {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(0.3, 0.0, 0.0);
+    return T;
+  }();
+  const std::atomic<bool> go{false}, stopped{true};
+  KnnResidualProvider plain(c.options), fetched(c.options);
+  plain.SetKeepNeighbours(false);
+  fetched.SetKeepNeighbours(false);
+  // Prefetched before the split: every point searched, whatever its label will be.
+  fetched.Prefetch(c.f.frame, c.near, {}, 0.0, go);
+  // The split: every third point becomes a skeleton point, a few are discarded.
+  size_t scattered = 0;
+  for (size_t i = 0; i < c.f.frame.labels.size(); ++i) {
+    c.f.frame.labels[i] = i % 3 == 0   ? PointLabel::kSkeleton
+                          : i % 7 == 0 ? PointLabel::kDiscarded
+                                       : PointLabel::kScattered;
+    scattered += c.f.frame.labels[i] == PointLabel::kScattered ? 1 : 0;
+  }
+  std::vector<PointPlaneRow> a0, a1, b0, b1;
+  plain.BeginScan(c.f.frame);
+  fetched.BeginScan(c.f.frame);
+  EXPECT_EQ(plain.prefetched(), 0u);
+  EXPECT_EQ(fetched.prefetched(), c.f.frame.points_lidar.size());
+  EXPECT_EQ(fetched.prefetched_scattered(), scattered);
+  plain.ComputeRows(c.near, &a0);
+  fetched.ComputeRows(c.near, &b0);
+  ASSERT_GT(a0.size(), 50u);
+  EXPECT_TRUE(SameRows(a0, b0));
+  plain.ComputeRows(far, &a1);
+  fetched.ComputeRows(far, &b1);
+  EXPECT_TRUE(SameRows(a1, b1));
+  EXPECT_FALSE(SameRows(b1, b0));
+
+  // Consumed by that BeginScan: the next one starts with nothing searched.
+  fetched.BeginScan(c.f.frame);
+  EXPECT_EQ(fetched.prefetched(), 0u);
+  // Prefetched at another pose than the first iteration's: counted, never read.
+  fetched.Prefetch(c.f.frame, far, {}, 0.0, go);
+  fetched.BeginScan(c.f.frame);
+  EXPECT_EQ(fetched.prefetched_scattered(), scattered);
+  std::vector<PointPlaneRow> other;
+  fetched.ComputeRows(c.near, &other);
+  EXPECT_TRUE(SameRows(other, a0));
+  // Stopped at once (the split was done first): nothing searched, the same rows.
+  fetched.Prefetch(c.f.frame, c.near, {}, 0.0, stopped);
+  fetched.BeginScan(c.f.frame);
+  EXPECT_EQ(fetched.prefetched(), 0u);
+  std::vector<PointPlaneRow> none;
+  fetched.ComputeRows(c.near, &none);
+  EXPECT_TRUE(SameRows(none, a0));
+}
+
+// Prefetch's order: the points within the band of a likely plane last (they will mostly be
+// skeleton points, which need no search), each part in index order; points beyond the residual
+// range not at all.
+TEST(KnnResidual, PrefetchSearchesThePointsNearLikelyPlanesLast) {
+  test::KnnRoomFixture f;
+  test::BuildKnnRoom(test::MakeRoomScene(), &f);
+  f.frame.residual_max_range = 12.0;
+  const Plane floor{Eigen::Vector3d::UnitZ(), 2.0};  // z = -2 in the scan frame
+  KnnResidualProvider knn;
+  const std::vector<size_t>& order = knn.PrefetchOrder(f.frame, {floor}, 0.1);
+  size_t within_range = 0, on_floor = 0;
+  for (const Eigen::Vector3f& p : f.frame.points_lidar) {
+    if (!f.frame.GivesResidual(p)) continue;
+    ++within_range;
+    on_floor += std::abs(p.z() + 2.0f) < 0.1f ? 1 : 0;
+  }
+  ASSERT_GT(on_floor, 20u);
+  ASSERT_LT(on_floor + 20, within_range);
+  ASSERT_EQ(order.size(), within_range);
+  const size_t first_floor = order.size() - on_floor;
+  for (size_t k = 0; k < order.size(); ++k) {
+    const Eigen::Vector3f& p = f.frame.points_lidar[order[k]];
+    EXPECT_TRUE(f.frame.GivesResidual(p));
+    EXPECT_EQ(std::abs(p.z() + 2.0f) < 0.1f, k >= first_floor) << k;
+    if (k > 0 && k != first_floor) {
+      EXPECT_LT(order[k - 1], order[k]);
+    }
+  }
 }
 
 }  // namespace

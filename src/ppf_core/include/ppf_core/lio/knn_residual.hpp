@@ -4,12 +4,14 @@
 // r = n . (T_world_lidar p) + d, gated by |r| < max_residual. OpenMP-parallel over points.
 #pragma once
 
+#include <atomic>
 #include <string>
 #include <vector>
 
 #include "ppf_core/config.hpp"  // this stage's options
 #include "ppf_core/lio/residual_provider.hpp"
 #include "ppf_core/lio/voxel_map.hpp"
+#include "ppf_core/ppf/plane.hpp"
 
 namespace ppf {
 
@@ -43,6 +45,25 @@ class KnnResidualProvider : public ResidualProvider {
   // registered from LiDAR-only guesses (no IMU, or re-localizing after a loss) moves by more, and
   // a neighbour set kept from its first iterations would hold it where they were made.
   void SetKeepNeighbours(bool keep) { keep_neighbours_ = keep; }
+  // Searches the neighbours of frame's points at T_world_lidar (those that give a residual, in
+  // index order) on the calling thread until `stop` is set, for the next BeginScan of the same
+  // frame. It runs beside the pre-fit, which decides which points are scattered: the scan's
+  // first iteration then skips the search of each scattered point whose query lands on the
+  // world point searched here (the same query on the same map: the same neighbours and plane).
+  // The searches of points the split labels otherwise are spent for nothing; the map must not
+  // change until that BeginScan.
+  // Points within `band` of one of likely_planes (scan frame: the planes the pre-fit will most
+  // likely take) are searched last.
+  void Prefetch(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
+                const std::vector<Plane>& likely_planes, double band,
+                const std::atomic<bool>& stop);
+  // The order Prefetch searches in: the points that give a residual, those within `band` of
+  // none of likely_planes first, each part in index order (valid until the next call).
+  const std::vector<size_t>& PrefetchOrder(const ScanFrame& frame,
+                                           const std::vector<Plane>& likely_planes, double band);
+  // Points Prefetch searched for the last BeginScan, and how many of them were scattered.
+  size_t prefetched() const { return prefetched_; }
+  size_t prefetched_scattered() const { return prefetched_scattered_; }
 
  private:
   KnnOptions options_;
@@ -69,6 +90,17 @@ class KnnResidualProvider : public ResidualProvider {
     double d = 0.0;
   };
   std::vector<CachedFit> fits_;
+  // Prefetch's searches, one slot per point of prefetch_frame_ (searched == false: not reached).
+  const ScanFrame* prefetch_frame_ = nullptr;
+  std::vector<CachedFit> prefetch_;
+  std::vector<size_t> order_, later_;  // Prefetch's search order (scratch)
+  size_t prefetched_ = 0;
+  size_t prefetched_scattered_ = 0;
+
+  // The k-neighbour search of the world point q_w and its plane fit, into *fit (as the first
+  // iteration of a scan makes them).
+  void SearchAndFit(const VoxelMap& map, const Eigen::Vector3f& q_w, size_t k,
+                    std::vector<Eigen::Vector3f>* nn, CachedFit* fit) const;
 };
 
 }  // namespace ppf

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "ppf_core/detail/omp_team.hpp"
+
 namespace ppf {
 namespace {
 
@@ -117,11 +119,16 @@ int CountPlaneInliers(const std::vector<Eigen::Vector3f>& points, const Plane& p
               nz = static_cast<float>(plane.n.z()), d = static_cast<float>(plane.d);
   const float fdelta = static_cast<float>(delta);
   const long n = static_cast<long>(points.size());
-  int count = 0;
-#pragma omp parallel for reduction(+ : count) schedule(static) if (n > kParallelWork / 8)
-  for (long i = 0; i < n; ++i) {
+  const auto inlier = [&](long i) {
     const auto& p = points[i];
-    count += (std::abs(nx * p.x() + ny * p.y() + nz * p.z() + d) < fdelta) ? 1 : 0;
+    return (std::abs(nx * p.x() + ny * p.y() + nz * p.z() + d) < fdelta) ? 1 : 0;
+  };
+  int count = 0;
+  if (n > kParallelWork / 8 && detail::MayOpenTeam()) {
+#pragma omp parallel for reduction(+ : count) schedule(static)
+    for (long i = 0; i < n; ++i) count += inlier(i);
+  } else {
+    for (long i = 0; i < n; ++i) count += inlier(i);
   }
   return count;
 }
@@ -172,16 +179,21 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
     // The reference is fixed during the batch, so the pre-test decisions do not depend on threads.
     const long reference = std::max<long>(best_count, min_inliers);
     const bool pretest = stride > 1 && reference * m >= kPretestMinExpected * static_cast<long>(n);
-#pragma omp parallel for schedule(static) if (static_cast <long>(n) * filled > kParallelWork)
-    for (int b = 0; b < filled; ++b) {
+    const auto score = [&](int b) {
       if (pretest) {
         const long sub = CountInliersSoa(subset, batch[b], delta);
         if (2 * sub * static_cast<long>(n) < reference * m) {
           batch_count[b] = kPretestRejected;
-          continue;
+          return;
         }
       }
       batch_count[b] = CountInliersAbove(soa, batch[b], delta, best_count);
+    };
+    if (static_cast<long>(n) * filled > kParallelWork && detail::MayOpenTeam()) {
+#pragma omp parallel for schedule(static)
+      for (int b = 0; b < filled; ++b) score(b);
+    } else {
+      for (int b = 0; b < filled; ++b) score(b);
     }
 
     for (int b = 0; b < filled; ++b) {

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "ppf_core/detail/omp_team.hpp"
+
 namespace ppf {
 
 void LabelSandwich(const std::vector<Eigen::Vector3f>& points, const Plane& plane, double delta,
@@ -16,13 +18,18 @@ void LabelSandwich(const std::vector<Eigen::Vector3f>& points, const Plane& plan
               nz = static_cast<float>(plane.n.z()), d = static_cast<float>(plane.d);
   const float strict = static_cast<float>(delta);
   const float semi = static_cast<float>(delta * (semi_factor > 1.0 ? semi_factor : 1.0));
-// Parallel only for full-resolution scans (docs/decisions.md, "Parallel moments only for full
-// scans").
-#pragma omp parallel for schedule(static) if (n > 32768)
-  for (long i = 0; i < n; ++i) {
+  // Parallel only for full-resolution scans (docs/decisions.md, "Parallel moments only for full
+  // scans").
+  const auto classify = [&](long i) {
     const auto& p = points[i];
     const float a = std::abs(nx * p.x() + ny * p.y() + nz * p.z() + d);
     label[i] = a < strict ? 0 : (a < semi ? 1 : 2);
+  };
+  if (n > 32768 && detail::MayOpenTeam()) {
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < n; ++i) classify(i);
+  } else {
+    for (long i = 0; i < n; ++i) classify(i);
   }
   // Serial compaction keeps the order deterministic; it is a cheap linear pass.
   for (long i = 0; i < n; ++i) {

@@ -444,6 +444,13 @@ void LioPpf::Impl::SplitScan(bool lidar, ScanResult* r) {
       // points at the predicted pose meanwhile, which the update's first iteration then reuses
       // for the points the split leaves scattered (KnnResidualProvider::Prefetch). The update
       // starts from that pose, so its rows are the ones it would have searched itself.
+      std::vector<Plane> guessed;
+      for (const PlaneGuess& g : tracker->window().GuessesInFrame(frame.T_world_lidar_predicted)) {
+        guessed.push_back(g.plane);
+      }
+      const PpfConfig& c = tracker->config();
+      const double band = c.delta * std::max(1.0, c.semi_band_factor);
+      knn->PreparePrefetch(frame.points_lidar.size());
       std::atomic<bool> split_done{false};
 #pragma omp parallel num_threads(2)
       {
@@ -456,14 +463,7 @@ void LioPpf::Impl::SplitScan(bool lidar, ScanResult* r) {
           tracker->Split(&frame);
           split_done.store(true, std::memory_order_release);
         } else {
-          std::vector<Plane> guessed;
-          for (const PlaneGuess& g :
-               tracker->window().GuessesInFrame(frame.T_world_lidar_predicted)) {
-            guessed.push_back(g.plane);
-          }
-          const PpfConfig& c = tracker->config();
-          knn->Prefetch(frame, frame.T_world_lidar_predicted, guessed,
-                        c.delta * std::max(1.0, c.semi_band_factor), split_done);
+          knn->Prefetch(frame, frame.T_world_lidar_predicted, guessed, band, split_done);
         }
       }
     } else {

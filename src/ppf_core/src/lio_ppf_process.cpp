@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cmath>
 #include <sstream>
+#include <thread>
 #include <vector>
 
 #ifdef _OPENMP
@@ -14,7 +15,6 @@
 #include "lio_ppf_impl.hpp"
 #include "ppf_core/lio/deskew.hpp"
 #include "ppf_core/lio/so3.hpp"
-#include "ppf_core/ppf/ipca.hpp"
 
 namespace ppf {
 
@@ -450,22 +450,21 @@ void LioPpf::Impl::SplitScan(bool lidar, ScanResult* r) {
       }
       const PpfConfig& c = tracker->config();
       const double band = c.delta * std::max(1.0, c.semi_band_factor);
-      knn->PreparePrefetch(frame.points_lidar.size());
       std::atomic<bool> split_done{false};
-#pragma omp parallel num_threads(2)
-      {
-#ifdef _OPENMP
-        const int thread = omp_get_thread_num();
-#else
-        const int thread = 0;
-#endif
-        if (thread == 0) {
-          tracker->Split(&frame);
-          split_done.store(true, std::memory_order_release);
-        } else {
-          knn->Prefetch(frame, frame.T_world_lidar_predicted, guessed, band, split_done);
+      // A thread of its own rather than an OpenMP team: its start and join are synchronisation
+      // the ThreadSanitizer stage sees (the OpenMP runtime's it does not), and the pre-fit keeps
+      // the loops it would run on a team of its own (none for the scans let through here).
+      std::thread prefetch(
+          [&] { knn->Prefetch(frame, frame.T_world_lidar_predicted, guessed, band, split_done); });
+      struct JoinOnExit {
+        std::atomic<bool>* done;
+        std::thread* thread;
+        ~JoinOnExit() {
+          done->store(true, std::memory_order_release);
+          thread->join();
         }
-      }
+      } join{&split_done, &prefetch};
+      tracker->Split(&frame);
     } else {
       tracker->Split(&frame);
     }
@@ -477,9 +476,9 @@ void LioPpf::Impl::SplitScan(bool lidar, ScanResult* r) {
 
 // Whether this scan's pre-fit gets the kNN prefetch beside it: an IMU-predicted scan (a
 // LiDAR-only one is registered from its guesses, not from the predicted pose) on two threads or
-// more, a map to search, and a scan small enough that the pre-fit takes no OpenMP team of its own
-// (iPCA's moments are a reduction above kIpcaParallelPoints, whose sums would change with one
-// thread less: the split must be the one it is without the prefetch).
+// more, a map to search, and a scan small enough that the pre-fit's RANSAC scores its batches
+// on one thread (ransac.cpp's kParallelWork over a batch of 16: above it, a team of two beside
+// the prefetch would put three threads on the two cores).
 bool LioPpf::Impl::PrefetchBesideSplit(bool lidar) const {
 #ifdef _OPENMP
   const int threads = config.num_threads > 0 ? config.num_threads : omp_get_max_threads();
@@ -487,7 +486,7 @@ bool LioPpf::Impl::PrefetchBesideSplit(bool lidar) const {
   const int threads = 1;
 #endif
   return tracker != nullptr && !lidar && threads >= 2 && map.size() > 0 &&
-         static_cast<long>(frame.points_lidar.size()) <= kIpcaParallelPoints;
+         frame.points_lidar.size() <= 16384;
 }
 
 // The de-skewed frame made ready for the split and the update, all points scattered so far.

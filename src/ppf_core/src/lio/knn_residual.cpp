@@ -81,12 +81,6 @@ void KnnResidualProvider::SearchAndFit(const VoxelMap& map, const Eigen::Vector3
   fit->d = d;
 }
 
-void KnnResidualProvider::PreparePrefetch(size_t points) {
-  prefetch_.reserve(points);
-  order_.reserve(points);
-  later_.reserve(points);
-}
-
 const std::vector<size_t>& KnnResidualProvider::PrefetchOrder(
     const ScanFrame& frame, const std::vector<Plane>& likely_planes, double band) {
   order_.clear();

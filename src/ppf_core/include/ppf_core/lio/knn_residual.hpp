@@ -53,15 +53,10 @@ class KnnResidualProvider : public ResidualProvider {
   // The searches of points the split labels otherwise are spent for nothing; the map must not
   // change until that BeginScan.
   // Points within `band` of one of likely_planes (scan frame: the planes the pre-fit will most
-  // likely take) are searched last. Call PreparePrefetch first, on the thread that owns this
-  // provider.
+  // likely take) are searched last.
   void Prefetch(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
                 const std::vector<Plane>& likely_planes, double band,
                 const std::atomic<bool>& stop);
-  // Sizes Prefetch's buffers for a frame of `points` points, so that Prefetch, run on another
-  // thread, allocates nothing this thread later frees (ThreadSanitizer sees allocations, not the
-  // OpenMP runtime's synchronisation).
-  void PreparePrefetch(size_t points);
   // The order Prefetch searches in: the points that give a residual, those within `band` of
   // none of likely_planes first, each part in index order (valid until the next call).
   const std::vector<size_t>& PrefetchOrder(const ScanFrame& frame,

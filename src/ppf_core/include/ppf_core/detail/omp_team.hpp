@@ -1,8 +1,8 @@
-// Whether a loop worth a parallel region may open one: not from inside another region. The kPpf
-// pre-fit runs on one thread of a team while the other searches the kNN map (LioPpf's
-// SplitScan); a region opened there would run on that one thread and still pay for a team of its
-// own at every call (hundreds a scan), so the loops that would open one run serially instead.
-// Every such loop gives the same result on any number of threads.
+// Whether a loop worth a parallel region may open one: not from inside another region. The
+// pre-fit's loops (RANSAC's batch scoring, inlier counts, sandwich labels) choose between their
+// parallel and serial forms with a plain if: a `parallel for` whose if clause is false is still a
+// region entry, hundreds a scan, and inside another team each builds a nested team of one. Every
+// such loop gives the same result on any number of threads.
 #pragma once
 
 #ifdef _OPENMP

@@ -13,7 +13,7 @@ namespace {
 // (a barrier waiting for a preempted thread costs a scheduler slice; docs/decisions.md,
 // "Parallel moments only for full scans"). Parallel only for large inputs (full-resolution
 // scans).
-constexpr long kParallelPoints = kIpcaParallelPoints;
+constexpr long kParallelPoints = 32768;
 
 // First and second moments of a point subset, about a reference point to avoid cancellation.
 struct Moments {

@@ -46,14 +46,13 @@ class KnnResidualProvider : public ResidualProvider {
   // a neighbour set kept from its first iterations would hold it where they were made.
   void SetKeepNeighbours(bool keep) { keep_neighbours_ = keep; }
   // Searches the neighbours of frame's points at T_world_lidar (those that give a residual, in
-  // index order) on the calling thread until `stop` is set, for the next BeginScan of the same
+  // PrefetchOrder) on the calling thread until `stop` is set, for the next BeginScan of the same
   // frame. It runs beside the pre-fit, which decides which points are scattered: the scan's
   // first iteration then skips the search of each scattered point whose query lands on the
   // world point searched here (the same query on the same map: the same neighbours and plane).
   // The searches of points the split labels otherwise are spent for nothing; the map must not
-  // change until that BeginScan.
-  // Points within `band` of one of likely_planes (scan frame: the planes the pre-fit will most
-  // likely take) are searched last.
+  // change until that BeginScan. likely_planes: scan frame, the planes the pre-fit will most
+  // likely take.
   void Prefetch(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,
                 const std::vector<Plane>& likely_planes, double band,
                 const std::atomic<bool>& stop);

@@ -28,10 +28,6 @@ struct IpcaResult {
   std::vector<int> inlier_counts;  // count history: [initial, after 1st solve, ...]
 };
 
-// Inputs of more points than this accumulate their moments on the OpenMP threads (a reduction,
-// whose sums then depend on the thread count); fewer, serially in point order.
-constexpr long kIpcaParallelPoints = 32768;
-
 // True if the last four counts alternate a,b,a,b with a != b.
 bool IpcaCountsOscillate(const std::vector<int>& counts);
 

@@ -18,19 +18,19 @@ VoxelMap::VoxelMap(const VoxelMapOptions& options) : options_(options) {
 void VoxelMap::Insert(const Point& p) {
   if (!p.allFinite()) return;
   const VoxelKey key = ToVoxelKey(p, inv_resolution_);
-  const VoxelIt* found = index_.Find(key);
-  VoxelIt it;
-  if (found == nullptr) {
+  Entry* e = index_.Find(key);
+  if (e == nullptr) {
     lru_.push_front(Voxel{key, {}});
     lru_.front().points.reserve(std::min<size_t>(options_.max_points_per_voxel, 8));
-    it = lru_.begin();
-    index_.Insert(key, it);
-    if (index_.size() > options_.max_voxels) EvictOldest();
-  } else {
-    it = *found;
-    if (it != lru_.begin()) lru_.splice(lru_.begin(), lru_, it);  // O(1), iterators stay valid
+    e = index_.Insert(key, Entry{lru_.begin()});
+    if (index_.size() > options_.max_voxels) {
+      EvictOldest();
+      e = index_.Find(key);  // the erasure moves slots
+    }
+  } else if (e->it != lru_.begin()) {
+    lru_.splice(lru_.begin(), lru_, e->it);  // O(1), iterators stay valid
   }
-  std::vector<Point>& pts = it->points;
+  std::vector<Point>& pts = e->it->points;
   if (pts.size() >= options_.max_points_per_voxel) return;
   const float min_d2 =
       static_cast<float>(options_.min_point_distance * options_.min_point_distance);
@@ -40,6 +40,8 @@ void VoxelMap::Insert(const Point& p) {
     }
   }
   pts.push_back(p);
+  e->points = pts.data();
+  e->count = static_cast<uint32_t>(pts.size());
   ++num_points_;
 }
 
@@ -74,9 +76,10 @@ size_t VoxelMap::GetClosest(const Point& query, size_t k, double max_range,
         const double limit = n == k ? std::min<double>(best_d2[k - 1], max_d2) : max_d2;
         if (bounds.LowerBound2(o, options_.resolution) > limit * (1.0 + 1e-4)) continue;
       }
-      const VoxelIt* it = index_.Find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
-      if (it == nullptr) continue;
-      for (const Point& p : (*it)->points) {
+      const Entry* e = index_.Find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
+      if (e == nullptr) continue;
+      for (uint32_t i = 0; i < e->count; ++i) {
+        const Point& p = e->points[i];
         const float d2 = (p - query).squaredNorm();
         if (!(d2 <= max_d2)) continue;
         if (n == k && !(d2 < best_d2[k - 1])) continue;
@@ -95,9 +98,10 @@ size_t VoxelMap::GetClosest(const Point& query, size_t k, double max_range,
   std::vector<std::pair<float, Point>> cand;
   cand.reserve(64);
   for (const VoxelKey& o : offsets_) {
-    const VoxelIt* it = index_.Find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
-    if (it == nullptr) continue;
-    for (const Point& p : (*it)->points) {
+    const Entry* e = index_.Find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
+    if (e == nullptr) continue;
+    for (uint32_t i = 0; i < e->count; ++i) {
+      const Point& p = e->points[i];
       const float d2 = (p - query).squaredNorm();
       if (d2 <= max_d2) cand.emplace_back(d2, p);
     }

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <list>
 #include <vector>
 
@@ -72,6 +73,15 @@ class VoxelMap {
     std::vector<Point> points;
   };
   using VoxelIt = std::list<Voxel>::iterator;
+  // What the index holds of a voxel: its place in lru_, and where its points are (the vector's
+  // buffer and size, renewed by every insertion into it). A query reads the slot, then the
+  // points: the list node between them was one more dependent load per voxel visited, and a
+  // query waits on those loads far more than it computes.
+  struct Entry {
+    VoxelIt it;
+    const Point* points = nullptr;
+    uint32_t count = 0;
+  };
 
   // Squared distance from a query (at f in voxel units within its voxel) to the nearest point of
   // the neighbour voxel at offset o, in metres squared, less a margin of 1e-4 voxel per axis:
@@ -90,7 +100,7 @@ class VoxelMap {
   VoxelMapOptions options_;
   double inv_resolution_ = 2.0;
   std::list<Voxel> lru_;  // front = most recently fed
-  detail::VoxelIndex<VoxelIt> index_;
+  detail::VoxelIndex<Entry> index_;
   std::vector<VoxelKey> offsets_;
   size_t num_points_ = 0;
 };

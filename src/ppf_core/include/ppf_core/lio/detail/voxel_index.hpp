@@ -27,12 +27,17 @@ class VoxelIndex {
       if (s.key == k) return &s.value;
     }
   }
-  void Insert(const VoxelKey& k, Value v) {  // k must not be present
+  Value* Find(const VoxelKey& k) {  // valid until the next Insert or Erase
+    return const_cast<Value*>(static_cast<const VoxelIndex&>(*this).Find(k));
+  }
+  // k must not be present. Returns its value, valid until the next Insert or Erase.
+  Value* Insert(const VoxelKey& k, Value v) {
     if (2 * (size_ + 1) > slots_.size()) Grow();
     size_t i = Home(k);
     while (slots_[i].used) i = (i + 1) & mask_;
     slots_[i] = Slot{k, true, v};
     ++size_;
+    return &slots_[i].value;
   }
   void Erase(const VoxelKey& k) {
     if (size_ == 0) return;

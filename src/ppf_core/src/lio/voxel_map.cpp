@@ -67,29 +67,49 @@ size_t VoxelMap::GetClosest(const Point& query, size_t k, double max_range,
     const Eigen::Vector3d f =
         query.cast<double>() * inv_resolution_ - Eigen::Vector3d(c.x, c.y, c.z);
     const NeighbourBounds bounds = BoundsAt(f);
+    // Three passes over the voxels within reach, so that their cache misses overlap: the slots'
+    // loads are issued, then the slots read and their points' loads issued, then the points
+    // scanned in the same order and with the same skips as a single pass would make.
+    VoxelKey keys[27];
+    const Entry* entries[27];
+    size_t m = 0;
     for (const VoxelKey& o : offsets_) {
       // A neighbour voxel that lies wholly beyond the search radius, or beyond the k-th best
-      // distance once k points are held, cannot change the result: its hash lookup (the cost of
-      // a query) is skipped. The bound is a lower bound with a margin for the rounding of the
-      // point distances and of the voxel keys, so no point it could hold is ever left out.
-      if (o.x != 0 || o.y != 0 || o.z != 0) {
-        const double limit = n == k ? std::min<double>(best_d2[k - 1], max_d2) : max_d2;
+      // distance once k points are held (third pass), cannot change the result: it is skipped.
+      // The bound is a lower bound with a margin for the rounding of the point distances and of
+      // the voxel keys, so no point it could hold is ever left out.
+      if ((o.x != 0 || o.y != 0 || o.z != 0) &&
+          bounds.LowerBound2(o, options_.resolution) > max_d2 * (1.0 + 1e-4)) {
+        continue;
+      }
+      keys[m] = VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z};
+      index_.Prefetch(keys[m]);
+      ++m;
+    }
+    for (size_t i = 0; i < m; ++i) {
+      entries[i] = index_.Find(keys[i]);
+      if (entries[i] != nullptr) __builtin_prefetch(entries[i]->points);
+    }
+    for (size_t i = 0; i < m; ++i) {
+      const Entry* e = entries[i];
+      if (e == nullptr) continue;
+      if (i != 0 && n == k) {
+        const VoxelKey o{keys[i].x - c.x, keys[i].y - c.y, keys[i].z - c.z};
+        const double limit = std::min<double>(best_d2[k - 1], max_d2);
         if (bounds.LowerBound2(o, options_.resolution) > limit * (1.0 + 1e-4)) continue;
       }
-      const Entry* e = index_.Find(VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z});
-      if (e == nullptr) continue;
-      for (uint32_t i = 0; i < e->count; ++i) {
-        const Point& p = e->points[i];
+      for (uint32_t j = 0; j < e->count; ++j) {
+        const Point& p = e->points[j];
         const float d2 = (p - query).squaredNorm();
         if (!(d2 <= max_d2)) continue;
         if (n == k && !(d2 < best_d2[k - 1])) continue;
-        size_t j = n < k ? n++ : k - 1;
-        for (; j > 0 && best_d2[j - 1] > d2; --j) {
-          best_d2[j] = best_d2[j - 1];
-          best[j] = best[j - 1];
+        size_t s = n < k ? n++ : k - 1;
+        for (; s > 0 && best_d2[s - 1] > d2; --s) {
+          best_d2[s] = best_d2[s - 1];
+          best[s] = best[s - 1];
         }
-        best_d2[j] = d2;
-        best[j] = p;
+        best_d2[s] = d2;
+        best[s] = p;
       }
     }
     out->assign(best, best + n);

@@ -71,6 +71,7 @@ size_t VoxelMap::GetClosest(const Point& query, size_t k, double max_range,
     // loads are issued, then the slots read and their points' loads issued, then the points
     // scanned in the same order and with the same skips as a single pass would make.
     VoxelKey keys[27];
+    double lower2[27];  // each voxel's bound, for the third pass's skip
     const Entry* entries[27];
     size_t m = 0;
     for (const VoxelKey& o : offsets_) {
@@ -78,10 +79,8 @@ size_t VoxelMap::GetClosest(const Point& query, size_t k, double max_range,
       // distance once k points are held (third pass), cannot change the result: it is skipped.
       // The bound is a lower bound with a margin for the rounding of the point distances and of
       // the voxel keys, so no point it could hold is ever left out.
-      if ((o.x != 0 || o.y != 0 || o.z != 0) &&
-          bounds.LowerBound2(o, options_.resolution) > max_d2 * (1.0 + 1e-4)) {
-        continue;
-      }
+      lower2[m] = bounds.LowerBound2(o, options_.resolution);
+      if ((o.x != 0 || o.y != 0 || o.z != 0) && lower2[m] > max_d2 * (1.0 + 1e-4)) continue;
       keys[m] = VoxelKey{c.x + o.x, c.y + o.y, c.z + o.z};
       index_.Prefetch(keys[m]);
       ++m;
@@ -93,10 +92,9 @@ size_t VoxelMap::GetClosest(const Point& query, size_t k, double max_range,
     for (size_t i = 0; i < m; ++i) {
       const Entry* e = entries[i];
       if (e == nullptr) continue;
-      if (i != 0 && n == k) {
-        const VoxelKey o{keys[i].x - c.x, keys[i].y - c.y, keys[i].z - c.z};
-        const double limit = std::min<double>(best_d2[k - 1], max_d2);
-        if (bounds.LowerBound2(o, options_.resolution) > limit * (1.0 + 1e-4)) continue;
+      if (i != 0 && n == k &&
+          lower2[i] > std::min<double>(best_d2[k - 1], max_d2) * (1.0 + 1e-4)) {
+        continue;
       }
       for (uint32_t j = 0; j < e->count; ++j) {
         const Point& p = e->points[j];

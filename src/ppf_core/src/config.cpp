@@ -217,6 +217,7 @@ ConfigTable CoreConfigTable(Config* c) {
   t.Add("ppf.semi_band_factor", &p->semi_band_factor);
   t.Add("ppf.point_to_plane_thresh", &p->point_to_plane_thresh);
   t.Add("ppf.skeleton_normal_gate_deg", &p->skeleton_normal_gate_deg);
+  t.Add("ppf.skeleton_rows_per_plane", &p->skeleton_rows_per_plane);
   t.Add("ppf.anchor_patches", &p->anchor_patches);
   t.Add("ppf.patch_window_fallback", &p->patch_window_fallback);
   t.Add("ppf.patch_size", &p->patch_size);

@@ -51,6 +51,8 @@ std::vector<std::string> ValidatePpfConfig(PpfConfig* c) {
       "point_to_plane_thresh", &notes);
   Fix(!std::isfinite(c->skeleton_normal_gate_deg) || c->skeleton_normal_gate_deg < 0.0,
       &c->skeleton_normal_gate_deg, d.skeleton_normal_gate_deg, "skeleton_normal_gate_deg", &notes);
+  Fix(c->skeleton_rows_per_plane < 0, &c->skeleton_rows_per_plane, d.skeleton_rows_per_plane,
+      "skeleton_rows_per_plane", &notes);
   Fix(c->plane_least_inliers < 3, &c->plane_least_inliers, d.plane_least_inliers,
       "plane_least_inliers", &notes);
   Fix(!std::isfinite(c->min_elevation_spread_deg) || c->min_elevation_spread_deg < 0.0 ||

@@ -38,6 +38,12 @@ struct PpfConfig {
   // Without it a wall point new to the window can be matched to the floor (docs/decisions.md,
   // "Normal gate").
   double skeleton_normal_gate_deg = 10.0;
+  // At most this many residual rows per pre-fit plane (not in the paper; 0 = one per skeleton
+  // point): every (count / cap)-th of its points in scan order, each row weighted count / cap, so
+  // a plane keeps the spread and the information of all its points while a dense LiDAR's plane
+  // of thousands of points costs the rows of a few hundred (docs/decisions.md, "Skeleton rows
+  // per plane").
+  int skeleton_rows_per_plane = 256;
   // Map-anchored skeleton residuals (plane_patch_map.hpp; not in the paper, which matches against
   // the previous scan's planes only): skeleton points are matched to the plane patch of their
   // world cell. Points in cells without a usable patch of their surface yet (one whose own points

@@ -166,24 +166,52 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   matches_.clear();
   lookups_.clear();
   own_normals_.clear();
-  if (prefit_ != nullptr && (normal_gate_deg_ > 0.0 || patches_ != nullptr)) {
-    // Normal of each skeleton point's own plane; the gate is skipped if labels and pre-fit
-    // disagree (a custom splitter changed the labels).
-    std::vector<int> plane_of(frame.points_lidar.size(), -1);
-    for (size_t k = 0; k < prefit_->skeleton_indices.size(); ++k) {
-      const int idx = prefit_->skeleton_indices[k];
-      if (idx >= 0 && idx < static_cast<int>(plane_of.size()))
-        plane_of[idx] = prefit_->skeleton_plane[k];
-    }
-    for (int idx : skeleton_indices_) {
-      const int pl = plane_of[idx];
-      if (pl < 0 || pl >= static_cast<int>(prefit_->planes.size())) {
-        own_normals_.clear();
-        break;
-      }
-      own_normals_.push_back(prefit_->planes[pl].plane.n);
+  row_weights_.clear();
+  if (prefit_ == nullptr) return;
+  // The pre-fit plane of each skeleton point; -1 where labels and pre-fit disagree (a custom
+  // splitter changed the labels): then neither the gate nor the row cap is applied.
+  plane_of_.assign(frame.points_lidar.size(), -1);
+  for (size_t k = 0; k < prefit_->skeleton_indices.size(); ++k) {
+    const int idx = prefit_->skeleton_indices[k];
+    const int pl = prefit_->skeleton_plane[k];
+    if (idx >= 0 && idx < static_cast<int>(plane_of_.size()) && pl >= 0 &&
+        pl < static_cast<int>(prefit_->planes.size())) {
+      plane_of_[idx] = pl;
     }
   }
+  const bool consistent = std::all_of(skeleton_indices_.begin(), skeleton_indices_.end(),
+                                      [&](int idx) { return plane_of_[idx] >= 0; });
+  if (!consistent) return;
+  if (rows_per_plane_ > 0) KeepRowsPerPlane();
+  if (normal_gate_deg_ > 0.0 || patches_ != nullptr) {
+    for (int idx : skeleton_indices_) own_normals_.push_back(prefit_->planes[plane_of_[idx]].plane.n);
+  }
+}
+
+// A plane's points in scan order are spread over the whole surface the LiDAR saw; every
+// (count / cap)-th of them keeps that spread, and the weight count / cap keeps the plane's
+// information what its full set gave, so the balance against the IMU prediction is unchanged.
+void SkeletonResidualProvider::KeepRowsPerPlane() {
+  const size_t cap = static_cast<size_t>(rows_per_plane_);
+  per_plane_count_.assign(prefit_->planes.size(), 0);
+  for (int idx : skeleton_indices_) ++per_plane_count_[plane_of_[idx]];
+  if (std::none_of(per_plane_count_.begin(), per_plane_count_.end(),
+                   [&](size_t c) { return c > cap; })) {
+    return;
+  }
+  per_plane_rank_.assign(prefit_->planes.size(), 0);
+  row_weights_.assign(frame_->points_lidar.size(), 1.0);
+  size_t kept = 0;
+  for (int idx : skeleton_indices_) {
+    const int pl = plane_of_[idx];
+    const size_t c = per_plane_count_[pl];
+    const size_t r = per_plane_rank_[pl]++;
+    // Rank r is kept when floor(r cap / c) steps: exactly cap of the c ranks, evenly spaced.
+    if (c > cap && (r * cap) / c == ((r + 1) * cap) / c) continue;
+    row_weights_[idx] = c > cap ? static_cast<double>(c) / static_cast<double>(cap) : 1.0;
+    skeleton_indices_[kept++] = idx;
+  }
+  skeleton_indices_.resize(kept);
 }
 
 void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
@@ -199,6 +227,7 @@ void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lida
     row.point_lidar = frame_->points_lidar[m.point_index].cast<double>();
     row.normal_world = m.plane.n;
     row.offset = m.plane.d;
+    if (!row_weights_.empty()) row.weight = row_weights_[m.point_index];
     rows->push_back(row);
   }
 }

@@ -20,6 +20,7 @@ SkeletonTracker::SkeletonTracker(const PpfConfig& config)
           &window_, prefitter_.config().point_to_plane_thresh)) {
   provider_->SetPrefitSource(&prefit_, prefitter_.config().skeleton_normal_gate_deg);
   provider_->SetNumThreads(prefitter_.config().num_threads);
+  provider_->SetRowsPerPlane(prefitter_.config().skeleton_rows_per_plane);
   if (prefitter_.config().anchor_patches) {
     provider_->SetPatchMap(&patches_, prefitter_.config().patch_window_fallback);
   }

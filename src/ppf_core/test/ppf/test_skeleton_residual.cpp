@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include "ppf_core/ppf/plane_prefitter.hpp"
 #include "ppf_core/ppf/skeleton_residual.hpp"
 #include "ppf_core/ppf/skeleton_window.hpp"
 
@@ -113,6 +114,102 @@ TEST(PpfSkeletonResidual, ProviderRowsReproduceEquationTen) {
   rows.clear();
   provider.ComputeRows(T, &rows);
   EXPECT_EQ(rows.size(), 2u);
+}
+
+// The normal equations' pose block of rows at T (the IEKF's J = [p x R^T n, n], weighted).
+Eigen::Matrix<double, 6, 6> WeightedJtJ(const std::vector<PointPlaneRow>& rows,
+                                        const Eigen::Isometry3d& T, double* weight_sum) {
+  Eigen::Matrix<double, 6, 6> JtJ = Eigen::Matrix<double, 6, 6>::Zero();
+  *weight_sum = 0.0;
+  for (const PointPlaneRow& row : rows) {
+    Eigen::Matrix<double, 6, 1> j;
+    j.head<3>() = row.point_lidar.cross(T.linear().transpose() * row.normal_world);
+    j.tail<3>() = row.normal_world;
+    JtJ += row.weight * j * j.transpose();
+    *weight_sum += row.weight;
+  }
+  return JtJ;
+}
+
+TEST(PpfSkeletonResidual, RowsPerPlaneKeepTheSpreadAndTheInformation) {
+  // A ground of 1000 points (z = -1.5 in the LiDAR frame) and a wall of 90 (x = 6), both in the
+  // window, the pre-fit of this scan saying which point lies on which.
+  PpfConfig cfg;
+  SkeletonWindow window(cfg);
+  FittedPlane ground, wall;
+  ground.plane = Plane{Eigen::Vector3d::UnitZ(), 1.5};
+  ground.centroid = Eigen::Vector3d(5, 0, -1.5);
+  ground.num_inliers = 1000;
+  wall.plane = Plane{-Eigen::Vector3d::UnitX(), 6.0};
+  wall.centroid = Eigen::Vector3d(6, 0, 1);
+  wall.num_inliers = 90;
+  window.Update({ground, wall}, Eigen::Isometry3d::Identity());
+
+  ScanFrame frame;
+  PrefitResult prefit;
+  prefit.planes = {ground, wall};
+  for (int i = 0; i < 1000; ++i) {  // the ground in scan order: rings of 40 points, 2 to 10 m
+    const double a = 2.0 * M_PI * (i % 40) / 40.0, r = 2.0 + 8.0 * (i / 40) / 24.0;
+    frame.points_lidar.emplace_back(r * std::cos(a), r * std::sin(a), -1.5 + 0.01 * (i % 3));
+    prefit.skeleton_plane.push_back(0);
+  }
+  for (int i = 0; i < 90; ++i) {  // the wall: 6 m by 3 m
+    frame.points_lidar.emplace_back(6.0f, -3.0f + 0.2f * (i % 30), -1.0f + 1.0f * (i / 30));
+    prefit.skeleton_plane.push_back(1);
+  }
+  for (size_t k = 0; k < frame.points_lidar.size(); ++k) {
+    prefit.skeleton_indices.push_back(static_cast<int>(k));
+  }
+  frame.labels.assign(frame.points_lidar.size(), PointLabel::kSkeleton);
+  const Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+
+  SkeletonResidualProvider all(&window, cfg.point_to_plane_thresh);
+  all.SetPrefitSource(&prefit, cfg.skeleton_normal_gate_deg);
+  all.BeginScan(frame);
+  std::vector<PointPlaneRow> full;
+  all.ComputeRows(T, &full);
+  ASSERT_EQ(full.size(), frame.points_lidar.size());  // every point is on its plane
+
+  SkeletonResidualProvider capped(&window, cfg.point_to_plane_thresh);
+  capped.SetPrefitSource(&prefit, cfg.skeleton_normal_gate_deg);
+  capped.SetRowsPerPlane(200);
+  capped.BeginScan(frame);
+  std::vector<PointPlaneRow> rows;
+  capped.ComputeRows(T, &rows);
+  // The ground gives exactly 200 rows of weight 1000 / 200; the wall, under the cap, all 90 of
+  // weight 1.
+  size_t ground_rows = 0, wall_rows = 0;
+  for (const PointPlaneRow& row : rows) {
+    if (row.normal_world.z() > 0.5) {
+      ++ground_rows;
+      EXPECT_DOUBLE_EQ(row.weight, 5.0);
+    } else {
+      ++wall_rows;
+      EXPECT_DOUBLE_EQ(row.weight, 1.0);
+    }
+  }
+  EXPECT_EQ(ground_rows, 200u);
+  EXPECT_EQ(wall_rows, 90u);
+  // The ground's rows still span its whole extent (every fifth point, not the first 200).
+  double max_range = 0.0;
+  for (const PointPlaneRow& row : rows) {
+    if (row.normal_world.z() > 0.5) max_range = std::max(max_range, row.point_lidar.head<2>().norm());
+  }
+  EXPECT_GT(max_range, 9.5);
+  // Same information: the weighted normal equations of the kept rows are those of all rows
+  // within a few percent, entry by entry relative to the largest.
+  double w_full = 0.0, w_capped = 0.0;
+  const Eigen::Matrix<double, 6, 6> H_full = WeightedJtJ(full, T, &w_full);
+  const Eigen::Matrix<double, 6, 6> H_capped = WeightedJtJ(rows, T, &w_capped);
+  EXPECT_NEAR(w_capped, w_full, 1e-9);
+  EXPECT_LT((H_capped - H_full).cwiseAbs().maxCoeff(), 0.03 * H_full.cwiseAbs().maxCoeff());
+  // Labels the pre-fit does not explain (a custom splitter): no cap, every point a row.
+  frame.labels.push_back(PointLabel::kSkeleton);
+  frame.points_lidar.emplace_back(3.0f, 0.0f, -1.5f);
+  capped.BeginScan(frame);
+  rows.clear();
+  capped.ComputeRows(T, &rows);
+  EXPECT_EQ(rows.size(), frame.points_lidar.size());
 }
 
 }  // namespace

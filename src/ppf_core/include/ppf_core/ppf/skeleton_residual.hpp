@@ -85,6 +85,10 @@ class SkeletonResidualProvider : public ResidualProvider {
   // scan, as it sets the kNN rows' KnnOptions::search_again_distance (LioPpf: only for a scan
   // whose prediction is that near). The patch map must not change within the scan.
   void SetKeepDistance(double metres) { keep_distance_ = metres; }
+  // > 0: a pre-fit plane gives at most this many rows, every (count / cap)-th of its points in
+  // scan order, each weighted count / cap (PpfConfig::skeleton_rows_per_plane); 0: every point.
+  // Needs the pre-fit source.
+  void SetRowsPerPlane(int cap) { rows_per_plane_ = cap; }
   std::string Name() const override { return "skeleton"; }
   void BeginScan(const ScanFrame& frame) override;
   void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
@@ -95,6 +99,8 @@ class SkeletonResidualProvider : public ResidualProvider {
   const std::vector<SkeletonMatch>& last_matches() const { return matches_; }
 
  private:
+  void KeepRowsPerPlane();
+
   const SkeletonWindow* window_;
   double eps_;
   const ScanFrame* frame_ = nullptr;
@@ -108,6 +114,10 @@ class SkeletonResidualProvider : public ResidualProvider {
   const PlanePatchMap* patches_ = nullptr;
   bool window_fallback_ = true;
   std::vector<Eigen::Vector3d> own_normals_;  // per skeleton_indices_ entry, scan frame
+  int rows_per_plane_ = 0;
+  std::vector<int> plane_of_;           // per scan point: its pre-fit plane, -1 none (scratch)
+  std::vector<size_t> per_plane_count_, per_plane_rank_;  // KeepRowsPerPlane's scratch
+  std::vector<double> row_weights_;     // per scan point, this scan; empty: every row weighs 1
   int num_threads_ = 0;
 };
 

@@ -43,7 +43,7 @@ struct PpfConfig {
   // a plane keeps the spread and the information of all its points while a dense LiDAR's plane
   // of thousands of points costs the rows of a few hundred (docs/decisions.md, "Skeleton rows
   // per plane").
-  int skeleton_rows_per_plane = 256;
+  int skeleton_rows_per_plane = 0;
   // Map-anchored skeleton residuals (plane_patch_map.hpp; not in the paper, which matches against
   // the previous scan's planes only): skeleton points are matched to the plane patch of their
   // world cell. Points in cells without a usable patch of their surface yet (one whose own points

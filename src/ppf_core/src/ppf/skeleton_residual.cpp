@@ -184,7 +184,9 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   if (!consistent) return;
   if (rows_per_plane_ > 0) KeepRowsPerPlane();
   if (normal_gate_deg_ > 0.0 || patches_ != nullptr) {
-    for (int idx : skeleton_indices_) own_normals_.push_back(prefit_->planes[plane_of_[idx]].plane.n);
+    for (int idx : skeleton_indices_) {
+      own_normals_.push_back(prefit_->planes[plane_of_[idx]].plane.n);
+    }
   }
 }
 

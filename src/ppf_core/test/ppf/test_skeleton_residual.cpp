@@ -193,7 +193,9 @@ TEST(PpfSkeletonResidual, RowsPerPlaneKeepTheSpreadAndTheInformation) {
   // The ground's rows still span its whole extent (every fifth point, not the first 200).
   double max_range = 0.0;
   for (const PointPlaneRow& row : rows) {
-    if (row.normal_world.z() > 0.5) max_range = std::max(max_range, row.point_lidar.head<2>().norm());
+    if (row.normal_world.z() > 0.5) {
+      max_range = std::max(max_range, row.point_lidar.head<2>().norm());
+    }
   }
   EXPECT_GT(max_range, 9.5);
   // Same information: the weighted normal equations of the kept rows are those of all rows

@@ -33,6 +33,7 @@ TEST(PpfTracker, LabelsRowsAndWindowThroughTheHooks) {
   // Points in cells the patch map has not seen yet fall back to the window: every skeleton point
   // can be matched (without the fallback those ~10 % give no residual).
   cfg.patch_window_fallback = true;
+  cfg.skeleton_rows_per_plane = 256;  // the planes here hold more points: rows are capped
   SkeletonTracker tracker(cfg);
   auto provider = tracker.residual_provider();
   std::map<size_t, int64_t> first_ids;

@@ -115,9 +115,9 @@ class SkeletonResidualProvider : public ResidualProvider {
   bool window_fallback_ = true;
   std::vector<Eigen::Vector3d> own_normals_;  // per skeleton_indices_ entry, scan frame
   int rows_per_plane_ = 0;
-  std::vector<int> plane_of_;           // per scan point: its pre-fit plane, -1 none (scratch)
+  std::vector<int> plane_of_;  // per scan point: its pre-fit plane, -1 none (scratch)
   std::vector<size_t> per_plane_count_, per_plane_rank_;  // KeepRowsPerPlane's scratch
-  std::vector<double> row_weights_;     // per scan point, this scan; empty: every row weighs 1
+  std::vector<double> row_weights_;  // per scan point, this scan; empty: every row weighs 1
   int num_threads_ = 0;
 };
 

@@ -167,7 +167,8 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   lookups_.clear();
   own_normals_.clear();
   row_weights_.clear();
-  if (prefit_ == nullptr) return;
+  const bool need_normals = normal_gate_deg_ > 0.0 || patches_ != nullptr;
+  if (prefit_ == nullptr || !(need_normals || rows_per_plane_ > 0)) return;
   // The pre-fit plane of each skeleton point; -1 where labels and pre-fit disagree (a custom
   // splitter changed the labels): then neither the gate nor the row cap is applied.
   plane_of_.assign(frame.points_lidar.size(), -1);
@@ -183,7 +184,7 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
                                       [&](int idx) { return plane_of_[idx] >= 0; });
   if (!consistent) return;
   if (rows_per_plane_ > 0) KeepRowsPerPlane();
-  if (normal_gate_deg_ > 0.0 || patches_ != nullptr) {
+  if (need_normals) {
     for (int idx : skeleton_indices_) {
       own_normals_.push_back(prefit_->planes[plane_of_[idx]].plane.n);
     }

@@ -147,6 +147,7 @@ void SkeletonResidualProvider::SetPrefitSource(const PrefitResult* prefit, doubl
 
 void SkeletonResidualProvider::Reset() {
   frame_ = nullptr;
+  points_ = nullptr;
   planes_world_.clear();
   skeleton_indices_.clear();
   matches_.clear();
@@ -155,6 +156,7 @@ void SkeletonResidualProvider::Reset() {
 
 void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   frame_ = &frame;
+  points_ = &frame.points_lidar;
   planes_world_ = window_ ? window_->WorldPlanes() : std::vector<Plane>{};
   skeleton_indices_.clear();
   const size_t n = std::min(frame.labels.size(), frame.points_lidar.size());
@@ -183,51 +185,74 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   const bool consistent = std::all_of(skeleton_indices_.begin(), skeleton_indices_.end(),
                                       [&](int idx) { return plane_of_[idx] >= 0; });
   if (!consistent) return;
+  entry_plane_.clear();
+  for (int idx : skeleton_indices_) entry_plane_.push_back(plane_of_[idx]);
   if (rows_per_plane_ > 0) KeepRowsPerPlane();
   if (need_normals) {
-    for (int idx : skeleton_indices_) {
-      own_normals_.push_back(prefit_->planes[plane_of_[idx]].plane.n);
-    }
+    for (int pl : entry_plane_) own_normals_.push_back(prefit_->planes[pl].plane.n);
   }
 }
 
-// A plane's points in scan order are spread over the whole surface the LiDAR saw; every
-// (count / cap)-th of them keeps that spread, and the weight count / cap keeps the plane's
-// information what its full set gave, so the balance against the IMU prediction is unchanged.
+// A plane of c > cap points gives cap rows: its points in scan order are cut into cap runs of
+// consecutive points, and each run gives one row at its centroid, weighted by the run's length.
+// Why centroids and not every (c / cap)-th point: a point-to-plane residual is linear in the
+// point, so the run's centroid carries the mean of its points' residuals and the weight their
+// count; the plane keeps the information of all its points and their noise still averages over
+// all c of them. A sample of cap points claimed the same information but averaged the noise over
+// cap points only, which on real (noisy) sweeps made the map the scattered points build less
+// consistent (docs/decisions.md, "Skeleton rows per plane"). Runs follow the scan, so each is a
+// short stretch of one ring: the rows keep the spread of the whole surface the LiDAR saw.
 void SkeletonResidualProvider::KeepRowsPerPlane() {
   const size_t cap = static_cast<size_t>(rows_per_plane_);
   per_plane_count_.assign(prefit_->planes.size(), 0);
-  for (int idx : skeleton_indices_) ++per_plane_count_[plane_of_[idx]];
+  for (int pl : entry_plane_) ++per_plane_count_[pl];
   if (std::none_of(per_plane_count_.begin(), per_plane_count_.end(),
                    [&](size_t c) { return c > cap; })) {
     return;
   }
+  // Run k of a plane holds its ranks r with floor(r cap / c) == k: consecutive ranks, exactly cap
+  // runs of floor(c / cap) or ceil(c / cap) points. A plane at or under the cap: one run a point.
   per_plane_rank_.assign(prefit_->planes.size(), 0);
-  row_weights_.assign(frame_->points_lidar.size(), 1.0);
-  size_t kept = 0;
-  for (int idx : skeleton_indices_) {
-    const int pl = plane_of_[idx];
+  per_plane_row_.assign(prefit_->planes.size(), -1);
+  row_points_.clear();
+  row_weights_.clear();
+  row_plane_.clear();
+  std::vector<Eigen::Vector3d>& sums = row_sums_;
+  sums.clear();
+  for (size_t e = 0; e < skeleton_indices_.size(); ++e) {
+    const int pl = entry_plane_[e];
     const size_t c = per_plane_count_[pl];
     const size_t r = per_plane_rank_[pl]++;
-    // Rank r is kept when floor(r cap / c) steps: exactly cap of the c ranks, evenly spaced.
-    if (c > cap && (r * cap) / c == ((r + 1) * cap) / c) continue;
-    row_weights_[idx] = c > cap ? static_cast<double>(c) / static_cast<double>(cap) : 1.0;
-    skeleton_indices_[kept++] = idx;
+    const bool starts_run = c <= cap || r == 0 || (r * cap) / c != ((r - 1) * cap) / c;
+    if (starts_run) {
+      per_plane_row_[pl] = static_cast<int>(sums.size());
+      sums.emplace_back(Eigen::Vector3d::Zero());
+      row_weights_.push_back(0.0);
+      row_plane_.push_back(pl);
+    }
+    const int row = per_plane_row_[pl];
+    sums[row] += (*points_)[skeleton_indices_[e]].cast<double>();
+    row_weights_[row] += 1.0;
   }
-  skeleton_indices_.resize(kept);
+  skeleton_indices_.resize(sums.size());
+  for (size_t k = 0; k < sums.size(); ++k) {
+    row_points_.push_back((sums[k] / row_weights_[k]).cast<float>());
+    skeleton_indices_[k] = static_cast<int>(k);
+  }
+  entry_plane_.swap(row_plane_);
+  points_ = &row_points_;
 }
 
 void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
                                            std::vector<PointPlaneRow>* rows) {
-  if (frame_ == nullptr) return;
-  MatchSkeleton(frame_->points_lidar, skeleton_indices_, own_normals_, normal_gate_deg_,
-                T_world_lidar, planes_world_, eps_, &matches_, patches_, window_fallback_,
-                num_threads_, keep_distance_ > 0.0 ? &lookups_ : nullptr,
-                static_cast<float>(keep_distance_));
+  if (frame_ == nullptr || points_ == nullptr) return;
+  MatchSkeleton(*points_, skeleton_indices_, own_normals_, normal_gate_deg_, T_world_lidar,
+                planes_world_, eps_, &matches_, patches_, window_fallback_, num_threads_,
+                keep_distance_ > 0.0 ? &lookups_ : nullptr, static_cast<float>(keep_distance_));
   rows->reserve(rows->size() + matches_.size());
   for (const SkeletonMatch& m : matches_) {
     PointPlaneRow row;
-    row.point_lidar = frame_->points_lidar[m.point_index].cast<double>();
+    row.point_lidar = (*points_)[m.point_index].cast<double>();
     row.normal_world = m.plane.n;
     row.offset = m.plane.d;
     if (!row_weights_.empty()) row.weight = row_weights_[m.point_index];

@@ -193,52 +193,112 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   }
 }
 
-// A plane of c > cap points gives cap rows: its points in scan order are cut into cap runs of
-// consecutive points, and each run gives one row at its centroid, weighted by the run's length.
-// Why centroids and not every (c / cap)-th point: a point-to-plane residual is linear in the
-// point, so the run's centroid carries the mean of its points' residuals and the weight their
-// count; the plane keeps the information of all its points and their noise still averages over
-// all c of them. A sample of cap points claimed the same information but averaged the noise over
-// cap points only, which on real (noisy) sweeps made the map the scattered points build less
-// consistent (docs/decisions.md, "Skeleton rows per plane"). Runs follow the scan, so each is a
-// short stretch of one ring: the rows keep the spread of the whole surface the LiDAR saw.
+// A plane of c > cap points gives at most cap rows: its points are binned on a square grid in
+// the plane (the cell edge from its extent, so that about cap cells are occupied), and each
+// occupied cell gives one row at the centroid of its points, weighted by their count. Why
+// centroids and not a sample of cap points: a point-to-plane residual is linear in the point, so
+// a cell's centroid carries the mean of its points' residuals and the weight their count; the
+// noise still averages over all c points. A sample of cap points weighted c / cap claimed the
+// same information but averaged the noise over cap points only, which on real (noisy) sweeps made
+// the map the scattered points build less consistent (docs/decisions.md, "Skeleton rows per
+// plane"). Why cells and not runs of the scan: what a centroid loses is its points' spread
+// about it (the rows never claim more than the points hold), which a small cell keeps small;
+// consecutive points of a sub-sampled or column-ordered scan can lie metres apart.
 void SkeletonResidualProvider::KeepRowsPerPlane() {
   const size_t cap = static_cast<size_t>(rows_per_plane_);
-  per_plane_count_.assign(prefit_->planes.size(), 0);
+  const size_t num_planes = prefit_->planes.size();
+  per_plane_count_.assign(num_planes, 0);
   for (int pl : entry_plane_) ++per_plane_count_[pl];
   if (std::none_of(per_plane_count_.begin(), per_plane_count_.end(),
                    [&](size_t c) { return c > cap; })) {
     return;
   }
-  // Run k of a plane holds its ranks r with floor(r cap / c) == k: consecutive ranks, exactly cap
-  // runs of floor(c / cap) or ceil(c / cap) points. A plane at or under the cap: one run a point.
-  per_plane_rank_.assign(prefit_->planes.size(), 0);
-  per_plane_row_.assign(prefit_->planes.size(), -1);
+  const std::vector<Eigen::Vector3f>& pts = *points_;
   row_points_.clear();
   row_weights_.clear();
   row_plane_.clear();
-  std::vector<Eigen::Vector3d>& sums = row_sums_;
-  sums.clear();
+  // Planes at or under the cap: one row per point, in scan order.
   for (size_t e = 0; e < skeleton_indices_.size(); ++e) {
     const int pl = entry_plane_[e];
-    const size_t c = per_plane_count_[pl];
-    const size_t r = per_plane_rank_[pl]++;
-    const bool starts_run = c <= cap || r == 0 || (r * cap) / c != ((r - 1) * cap) / c;
-    if (starts_run) {
-      per_plane_row_[pl] = static_cast<int>(sums.size());
-      sums.emplace_back(Eigen::Vector3d::Zero());
-      row_weights_.push_back(0.0);
-      row_plane_.push_back(pl);
+    if (per_plane_count_[pl] > cap) continue;
+    row_points_.push_back(pts[skeleton_indices_[e]]);
+    row_weights_.push_back(1.0);
+    row_plane_.push_back(pl);
+  }
+  for (size_t pl = 0; pl < num_planes; ++pl) {
+    if (per_plane_count_[pl] <= cap) continue;
+    // In-plane coordinates of this plane's points.
+    const Eigen::Vector3d n = prefit_->planes[pl].plane.n.normalized();
+    const Eigen::Vector3d u =
+        (std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).cross(n).normalized();
+    const Eigen::Vector3d v = n.cross(u);
+    cell_points_.clear();
+    Eigen::Vector2d lo(std::numeric_limits<double>::infinity(),
+                       std::numeric_limits<double>::infinity());
+    Eigen::Vector2d hi = -lo;
+    for (size_t e = 0; e < skeleton_indices_.size(); ++e) {
+      if (entry_plane_[e] != static_cast<int>(pl)) continue;
+      const Eigen::Vector3d p = pts[skeleton_indices_[e]].cast<double>();
+      const Eigen::Vector2d q(u.dot(p), v.dot(p));
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+      cell_points_.push_back({0, q, p});
     }
-    const int row = per_plane_row_[pl];
-    sums[row] += (*points_)[skeleton_indices_[e]].cast<double>();
-    row_weights_[row] += 1.0;
+    const Eigen::Vector2d extent = (hi - lo).cwiseMax(1e-3);
+    // The cell edge whose grid occupies close to cap cells, but no more: from cap cells of the
+    // bounding box, rescaled by the square root of occupied / cap (exact for a filled plane;
+    // a ring-scanned or gappy one needs a few steps). The largest count within the cap wins.
+    const auto occupied = [&](double edge) {
+      const int64_t nx = static_cast<int64_t>(extent.x() / edge) + 1;
+      for (CellPoint& cp : cell_points_) {
+        const int64_t ix = static_cast<int64_t>((cp.q.x() - lo.x()) / edge);
+        const int64_t iy = static_cast<int64_t>((cp.q.y() - lo.y()) / edge);
+        cp.cell = iy * nx + ix;
+      }
+      // Stable: the order within a cell, and so each centroid's sum, is deterministic.
+      std::stable_sort(cell_points_.begin(), cell_points_.end(),
+                       [](const CellPoint& a, const CellPoint& b) { return a.cell < b.cell; });
+      size_t cells = 0;
+      for (size_t k = 0; k < cell_points_.size(); ++k) {
+        if (k == 0 || cell_points_[k].cell != cell_points_[k - 1].cell) ++cells;
+      }
+      return cells;
+    };
+    double edge = std::sqrt(extent.x() * extent.y() / static_cast<double>(cap));
+    double best_edge = 0.0, last_edge = 0.0;
+    size_t best_cells = 0;
+    for (int attempt = 0; attempt < 6; ++attempt) {
+      const size_t cells = occupied(edge);
+      last_edge = edge;
+      if (cells <= cap && cells > best_cells) {
+        best_cells = cells;
+        best_edge = edge;
+      }
+      if (cells <= cap && 5 * cells >= 4 * cap) break;
+      edge *= std::sqrt(static_cast<double>(cells) / static_cast<double>(cap)) *
+              (cells > cap ? 1.02 : 1.0);
+    }
+    if (best_edge == 0.0) {  // no step came under the cap: grow until one does
+      best_edge = edge;
+      while (occupied(best_edge) > cap) best_edge *= 1.25;
+      last_edge = best_edge;
+    }
+    if (last_edge != best_edge) occupied(best_edge);
+    for (size_t k = 0; k < cell_points_.size();) {
+      size_t end = k;
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      while (end < cell_points_.size() && cell_points_[end].cell == cell_points_[k].cell) {
+        sum += cell_points_[end++].p;
+      }
+      const double count = static_cast<double>(end - k);
+      row_points_.push_back((sum / count).cast<float>());
+      row_weights_.push_back(count);
+      row_plane_.push_back(static_cast<int>(pl));
+      k = end;
+    }
   }
-  skeleton_indices_.resize(sums.size());
-  for (size_t k = 0; k < sums.size(); ++k) {
-    row_points_.push_back((sums[k] / row_weights_[k]).cast<float>());
-    skeleton_indices_[k] = static_cast<int>(k);
-  }
+  skeleton_indices_.resize(row_points_.size());
+  for (size_t k = 0; k < row_points_.size(); ++k) skeleton_indices_[k] = static_cast<int>(k);
   entry_plane_.swap(row_plane_);
   points_ = &row_points_;
 }

@@ -177,28 +177,32 @@ TEST(PpfSkeletonResidual, RowsPerPlaneKeepTheSpreadAndTheInformation) {
   capped.BeginScan(frame);
   std::vector<PointPlaneRow> rows;
   capped.ComputeRows(T, &rows);
-  // The ground gives exactly 200 rows, centroids of runs of 1000 / 200 points, each weighing its
-  // run; the wall, under the cap, all 90 of its points, of weight 1.
+  // The ground gives at most 200 rows, centroids of its points in one grid cell each weighing
+  // their count (together its 1000 points); the wall, under the cap, all 90 points, of weight 1.
   size_t ground_rows = 0, wall_rows = 0;
+  double ground_weight = 0.0;
   for (const PointPlaneRow& row : rows) {
     if (row.normal_world.z() > 0.5) {
       ++ground_rows;
-      EXPECT_DOUBLE_EQ(row.weight, 5.0);
+      ground_weight += row.weight;
+      EXPECT_GE(row.weight, 1.0);
     } else {
       ++wall_rows;
       EXPECT_DOUBLE_EQ(row.weight, 1.0);
     }
   }
-  EXPECT_EQ(ground_rows, 200u);
+  EXPECT_LE(ground_rows, 200u);
+  EXPECT_GE(ground_rows, 100u);
+  EXPECT_DOUBLE_EQ(ground_weight, 1000.0);
   EXPECT_EQ(wall_rows, 90u);
-  // The ground's rows still span its whole extent (short runs along the rings, not one blob).
+  // The ground's rows still span its whole extent (small cells, not one blob).
   double max_range = 0.0;
   for (const PointPlaneRow& row : rows) {
     if (row.normal_world.z() > 0.5) {
       max_range = std::max(max_range, row.point_lidar.head<2>().norm());
     }
   }
-  EXPECT_GT(max_range, 9.5);
+  EXPECT_GT(max_range, 9.0);
   // Same information: the weighted normal equations of the kept rows are those of all rows
   // within a few percent, entry by entry relative to the largest.
   double w_full = 0.0, w_capped = 0.0;

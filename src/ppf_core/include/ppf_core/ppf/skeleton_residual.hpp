@@ -11,6 +11,7 @@
 // matches from an earlier linearisation point.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -85,8 +86,8 @@ class SkeletonResidualProvider : public ResidualProvider {
   // scan, as it sets the kNN rows' KnnOptions::search_again_distance (LioPpf: only for a scan
   // whose prediction is that near). The patch map must not change within the scan.
   void SetKeepDistance(double metres) { keep_distance_ = metres; }
-  // > 0: a pre-fit plane of more points gives this many rows, each the centroid of a run of its
-  // consecutive points in scan order weighted by the run's length (PpfConfig::
+  // > 0: a pre-fit plane of more points gives at most this many rows, each the centroid of its
+  // points in one cell of an in-plane grid, weighted by their count (PpfConfig::
   // skeleton_rows_per_plane; KeepRowsPerPlane says why); 0: every point. Needs the pre-fit source.
   void SetRowsPerPlane(int cap) { rows_per_plane_ = cap; }
   std::string Name() const override { return "skeleton"; }
@@ -121,9 +122,14 @@ class SkeletonResidualProvider : public ResidualProvider {
   std::vector<int> plane_of_;  // per scan point: its pre-fit plane, -1 none (scratch)
   std::vector<int> entry_plane_;  // per skeleton_indices_ entry: its pre-fit plane
   // KeepRowsPerPlane's scratch.
-  std::vector<size_t> per_plane_count_, per_plane_rank_;
-  std::vector<int> per_plane_row_, row_plane_;
-  std::vector<Eigen::Vector3d> row_sums_;
+  struct CellPoint {
+    int64_t cell;
+    Eigen::Vector2d q;  // in-plane coordinates
+    Eigen::Vector3d p;  // scan frame
+  };
+  std::vector<size_t> per_plane_count_;
+  std::vector<int> row_plane_;
+  std::vector<CellPoint> cell_points_;
   std::vector<Eigen::Vector3f> row_points_;  // under the row cap: one per row, this scan
   std::vector<double> row_weights_;  // per row point, this scan; empty: every row weighs 1
   int num_threads_ = 0;

@@ -39,11 +39,10 @@ struct PpfConfig {
   // "Normal gate").
   double skeleton_normal_gate_deg = 10.0;
   // At most this many residual rows per pre-fit plane (not in the paper; 0 = one per skeleton
-  // point): a plane of more points gives one row per run of its consecutive points in scan order,
-  // at the run's centroid and weighted by its length, so a plane keeps the spread, the
-  // information and the noise averaging of all its points while a dense LiDAR's plane of
-  // thousands of points costs the rows of a few hundred (docs/decisions.md, "Skeleton rows per
-  // plane").
+  // point): every (count / cap)-th of its points in scan order, each row weighted count / cap, so
+  // a plane keeps the spread and the information of all its points while a dense LiDAR's plane
+  // of thousands of points costs the rows of a few hundred (docs/decisions.md, "Skeleton rows
+  // per plane").
   int skeleton_rows_per_plane = 0;
   // Map-anchored skeleton residuals (plane_patch_map.hpp; not in the paper, which matches against
   // the previous scan's planes only): skeleton points are matched to the plane patch of their

@@ -147,7 +147,6 @@ void SkeletonResidualProvider::SetPrefitSource(const PrefitResult* prefit, doubl
 
 void SkeletonResidualProvider::Reset() {
   frame_ = nullptr;
-  points_ = nullptr;
   planes_world_.clear();
   skeleton_indices_.clear();
   matches_.clear();
@@ -156,7 +155,6 @@ void SkeletonResidualProvider::Reset() {
 
 void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   frame_ = &frame;
-  points_ = &frame.points_lidar;
   planes_world_ = window_ ? window_->WorldPlanes() : std::vector<Plane>{};
   skeleton_indices_.clear();
   const size_t n = std::min(frame.labels.size(), frame.points_lidar.size());
@@ -185,134 +183,51 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   const bool consistent = std::all_of(skeleton_indices_.begin(), skeleton_indices_.end(),
                                       [&](int idx) { return plane_of_[idx] >= 0; });
   if (!consistent) return;
-  entry_plane_.clear();
-  for (int idx : skeleton_indices_) entry_plane_.push_back(plane_of_[idx]);
   if (rows_per_plane_ > 0) KeepRowsPerPlane();
   if (need_normals) {
-    for (int pl : entry_plane_) own_normals_.push_back(prefit_->planes[pl].plane.n);
+    for (int idx : skeleton_indices_) {
+      own_normals_.push_back(prefit_->planes[plane_of_[idx]].plane.n);
+    }
   }
 }
 
-// A plane of c > cap points gives at most cap rows: its points are binned on a square grid in
-// the plane (the cell edge from its extent, so that about cap cells are occupied), and each
-// occupied cell gives one row at the centroid of its points, weighted by their count. Why
-// centroids and not a sample of cap points: a point-to-plane residual is linear in the point, so
-// a cell's centroid carries the mean of its points' residuals and the weight their count; the
-// noise still averages over all c points. A sample of cap points weighted c / cap claimed the
-// same information but averaged the noise over cap points only, which on real (noisy) sweeps made
-// the map the scattered points build less consistent (docs/decisions.md, "Skeleton rows per
-// plane"). Why cells and not runs of the scan: what a centroid loses is its points' spread
-// about it (the rows never claim more than the points hold), which a small cell keeps small;
-// consecutive points of a sub-sampled or column-ordered scan can lie metres apart.
+// A plane's points in scan order are spread over the whole surface the LiDAR saw; every
+// (count / cap)-th of them keeps that spread, and the weight count / cap keeps the plane's
+// information what its full set gave, so the balance against the IMU prediction is unchanged.
 void SkeletonResidualProvider::KeepRowsPerPlane() {
   const size_t cap = static_cast<size_t>(rows_per_plane_);
-  const size_t num_planes = prefit_->planes.size();
-  per_plane_count_.assign(num_planes, 0);
-  for (int pl : entry_plane_) ++per_plane_count_[pl];
+  per_plane_count_.assign(prefit_->planes.size(), 0);
+  for (int idx : skeleton_indices_) ++per_plane_count_[plane_of_[idx]];
   if (std::none_of(per_plane_count_.begin(), per_plane_count_.end(),
                    [&](size_t c) { return c > cap; })) {
     return;
   }
-  const std::vector<Eigen::Vector3f>& pts = *points_;
-  row_points_.clear();
-  row_weights_.clear();
-  row_plane_.clear();
-  // Planes at or under the cap: one row per point, in scan order.
-  for (size_t e = 0; e < skeleton_indices_.size(); ++e) {
-    const int pl = entry_plane_[e];
-    if (per_plane_count_[pl] > cap) continue;
-    row_points_.push_back(pts[skeleton_indices_[e]]);
-    row_weights_.push_back(1.0);
-    row_plane_.push_back(pl);
+  per_plane_rank_.assign(prefit_->planes.size(), 0);
+  row_weights_.assign(frame_->points_lidar.size(), 1.0);
+  size_t kept = 0;
+  for (int idx : skeleton_indices_) {
+    const int pl = plane_of_[idx];
+    const size_t c = per_plane_count_[pl];
+    const size_t r = per_plane_rank_[pl]++;
+    // Rank r is kept when floor(r cap / c) steps: exactly cap of the c ranks, evenly spaced.
+    if (c > cap && (r * cap) / c == ((r + 1) * cap) / c) continue;
+    row_weights_[idx] = c > cap ? static_cast<double>(c) / static_cast<double>(cap) : 1.0;
+    skeleton_indices_[kept++] = idx;
   }
-  for (size_t pl = 0; pl < num_planes; ++pl) {
-    if (per_plane_count_[pl] <= cap) continue;
-    // In-plane coordinates of this plane's points.
-    const Eigen::Vector3d n = prefit_->planes[pl].plane.n.normalized();
-    const Eigen::Vector3d u =
-        (std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).cross(n).normalized();
-    const Eigen::Vector3d v = n.cross(u);
-    cell_points_.clear();
-    Eigen::Vector2d lo(std::numeric_limits<double>::infinity(),
-                       std::numeric_limits<double>::infinity());
-    Eigen::Vector2d hi = -lo;
-    for (size_t e = 0; e < skeleton_indices_.size(); ++e) {
-      if (entry_plane_[e] != static_cast<int>(pl)) continue;
-      const Eigen::Vector3d p = pts[skeleton_indices_[e]].cast<double>();
-      const Eigen::Vector2d q(u.dot(p), v.dot(p));
-      lo = lo.cwiseMin(q);
-      hi = hi.cwiseMax(q);
-      cell_points_.push_back({0, q, p});
-    }
-    const Eigen::Vector2d extent = (hi - lo).cwiseMax(1e-3);
-    // The cell edge whose grid occupies close to cap cells, but no more: from cap cells of the
-    // bounding box, rescaled by the square root of occupied / cap (exact for a filled plane;
-    // a ring-scanned or gappy one needs a few steps). The largest count within the cap wins.
-    const auto occupied = [&](double edge) {
-      const int64_t nx = static_cast<int64_t>(extent.x() / edge) + 1;
-      for (CellPoint& cp : cell_points_) {
-        const int64_t ix = static_cast<int64_t>((cp.q.x() - lo.x()) / edge);
-        const int64_t iy = static_cast<int64_t>((cp.q.y() - lo.y()) / edge);
-        cp.cell = iy * nx + ix;
-      }
-      // Stable: the order within a cell, and so each centroid's sum, is deterministic.
-      std::stable_sort(cell_points_.begin(), cell_points_.end(),
-                       [](const CellPoint& a, const CellPoint& b) { return a.cell < b.cell; });
-      size_t cells = 0;
-      for (size_t k = 0; k < cell_points_.size(); ++k) {
-        if (k == 0 || cell_points_[k].cell != cell_points_[k - 1].cell) ++cells;
-      }
-      return cells;
-    };
-    double edge = std::sqrt(extent.x() * extent.y() / static_cast<double>(cap));
-    double best_edge = 0.0, last_edge = 0.0;
-    size_t best_cells = 0;
-    for (int attempt = 0; attempt < 6; ++attempt) {
-      const size_t cells = occupied(edge);
-      last_edge = edge;
-      if (cells <= cap && cells > best_cells) {
-        best_cells = cells;
-        best_edge = edge;
-      }
-      if (cells <= cap && 5 * cells >= 4 * cap) break;
-      edge *= std::sqrt(static_cast<double>(cells) / static_cast<double>(cap)) *
-              (cells > cap ? 1.02 : 1.0);
-    }
-    if (best_edge == 0.0) {  // no step came under the cap: grow until one does
-      best_edge = edge;
-      while (occupied(best_edge) > cap) best_edge *= 1.25;
-      last_edge = best_edge;
-    }
-    if (last_edge != best_edge) occupied(best_edge);
-    for (size_t k = 0; k < cell_points_.size();) {
-      size_t end = k;
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      while (end < cell_points_.size() && cell_points_[end].cell == cell_points_[k].cell) {
-        sum += cell_points_[end++].p;
-      }
-      const double count = static_cast<double>(end - k);
-      row_points_.push_back((sum / count).cast<float>());
-      row_weights_.push_back(count);
-      row_plane_.push_back(static_cast<int>(pl));
-      k = end;
-    }
-  }
-  skeleton_indices_.resize(row_points_.size());
-  for (size_t k = 0; k < row_points_.size(); ++k) skeleton_indices_[k] = static_cast<int>(k);
-  entry_plane_.swap(row_plane_);
-  points_ = &row_points_;
+  skeleton_indices_.resize(kept);
 }
 
 void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
                                            std::vector<PointPlaneRow>* rows) {
-  if (frame_ == nullptr || points_ == nullptr) return;
-  MatchSkeleton(*points_, skeleton_indices_, own_normals_, normal_gate_deg_, T_world_lidar,
-                planes_world_, eps_, &matches_, patches_, window_fallback_, num_threads_,
-                keep_distance_ > 0.0 ? &lookups_ : nullptr, static_cast<float>(keep_distance_));
+  if (frame_ == nullptr) return;
+  MatchSkeleton(frame_->points_lidar, skeleton_indices_, own_normals_, normal_gate_deg_,
+                T_world_lidar, planes_world_, eps_, &matches_, patches_, window_fallback_,
+                num_threads_, keep_distance_ > 0.0 ? &lookups_ : nullptr,
+                static_cast<float>(keep_distance_));
   rows->reserve(rows->size() + matches_.size());
   for (const SkeletonMatch& m : matches_) {
     PointPlaneRow row;
-    row.point_lidar = (*points_)[m.point_index].cast<double>();
+    row.point_lidar = frame_->points_lidar[m.point_index].cast<double>();
     row.normal_world = m.plane.n;
     row.offset = m.plane.d;
     if (!row_weights_.empty()) row.weight = row_weights_[m.point_index];

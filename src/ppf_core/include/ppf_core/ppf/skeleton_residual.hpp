@@ -11,7 +11,6 @@
 // matches from an earlier linearisation point.
 #pragma once
 
-#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -86,9 +85,9 @@ class SkeletonResidualProvider : public ResidualProvider {
   // scan, as it sets the kNN rows' KnnOptions::search_again_distance (LioPpf: only for a scan
   // whose prediction is that near). The patch map must not change within the scan.
   void SetKeepDistance(double metres) { keep_distance_ = metres; }
-  // > 0: a pre-fit plane of more points gives at most this many rows, each the centroid of its
-  // points in one cell of an in-plane grid, weighted by their count (PpfConfig::
-  // skeleton_rows_per_plane; KeepRowsPerPlane says why); 0: every point. Needs the pre-fit source.
+  // > 0: a pre-fit plane gives at most this many rows, every (count / cap)-th of its points in
+  // scan order, each weighted count / cap (PpfConfig::skeleton_rows_per_plane); 0: every point.
+  // Needs the pre-fit source.
   void SetRowsPerPlane(int cap) { rows_per_plane_ = cap; }
   std::string Name() const override { return "skeleton"; }
   void BeginScan(const ScanFrame& frame) override;
@@ -96,8 +95,7 @@ class SkeletonResidualProvider : public ResidualProvider {
                    std::vector<PointPlaneRow>* rows) override;
   void Reset() override;
 
-  // Matches of the last ComputeRows call (diagnostics and tests). Under the row cap their
-  // point_index counts the rows (centroids), not the scan's points.
+  // Matches of the last ComputeRows call (diagnostics and tests).
   const std::vector<SkeletonMatch>& last_matches() const { return matches_; }
 
  private:
@@ -106,8 +104,6 @@ class SkeletonResidualProvider : public ResidualProvider {
   const SkeletonWindow* window_;
   double eps_;
   const ScanFrame* frame_ = nullptr;
-  // The points skeleton_indices_ index: the scan's, or row_points_ under the row cap.
-  const std::vector<Eigen::Vector3f>* points_ = nullptr;
   std::vector<Plane> planes_world_;
   std::vector<int> skeleton_indices_;
   std::vector<SkeletonMatch> matches_;
@@ -120,18 +116,8 @@ class SkeletonResidualProvider : public ResidualProvider {
   std::vector<Eigen::Vector3d> own_normals_;  // per skeleton_indices_ entry, scan frame
   int rows_per_plane_ = 0;
   std::vector<int> plane_of_;  // per scan point: its pre-fit plane, -1 none (scratch)
-  std::vector<int> entry_plane_;  // per skeleton_indices_ entry: its pre-fit plane
-  // KeepRowsPerPlane's scratch.
-  struct CellPoint {
-    int64_t cell;
-    Eigen::Vector2d q;  // in-plane coordinates
-    Eigen::Vector3d p;  // scan frame
-  };
-  std::vector<size_t> per_plane_count_;
-  std::vector<int> row_plane_;
-  std::vector<CellPoint> cell_points_;
-  std::vector<Eigen::Vector3f> row_points_;  // under the row cap: one per row, this scan
-  std::vector<double> row_weights_;  // per row point, this scan; empty: every row weighs 1
+  std::vector<size_t> per_plane_count_, per_plane_rank_;  // KeepRowsPerPlane's scratch
+  std::vector<double> row_weights_;  // per scan point, this scan; empty: every row weighs 1
   int num_threads_ = 0;
 };
 

@@ -166,9 +166,11 @@ void PpfNode::run() {
     }
   }
   // Drain: stop accepting, process what is queued, flush the core.
+  const auto stop_start = Clock::now();
   m.inputs.StopAccepting();
   m.executor->RequestDrain();
   executor.join();
+  const auto drained = Clock::now();
   m.FlushLogs();  // the counts of bursts no later line reported
   if (!m.config.tum_file.empty()) {
     std::string error;
@@ -182,7 +184,17 @@ void PpfNode::run() {
   m.map.Finish();  // every scan the executor handed over is in the file (or an ERROR says why)
   m.outputs.WaitForAcknowledgments();
   if (m.imu_rate) m.imu_rate->WaitForAcknowledgments();
+  const auto flushed = Clock::now();
   m.TearDown();
+  // A stop that takes long says where (the queue, the files and acknowledgments, or Fast DDS).
+  const auto s = [](Clock::duration d) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%.3f", std::chrono::duration<double>(d).count());
+    return std::string(buf);
+  };
+  Log(Level::kInfo, "stopped: drain " + s(drained - stop_start) + " s, outputs " +
+                        s(flushed - drained) + " s, DDS teardown " + s(Clock::now() - flushed) +
+                        " s");
 }
 
 void PpfNode::stop() {

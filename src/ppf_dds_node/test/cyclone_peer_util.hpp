@@ -164,7 +164,7 @@ inline void RunNodeAndPeer(const std::string& peer_exe, const std::string& dir, 
   ASSERT_TRUE(peer.WaitForLine("RESULT", &run->result, 90s, &run->peer));
   EXPECT_TRUE(ppf::dds::ExitedWith(peer.Wait(10s), 0));
   run->node_hwm_kb = ProcStatusKb(node.pid(), "VmHWM");
-  ASSERT_TRUE(StopNodeAndReadSummary(node, &run->summary));
+  ASSERT_TRUE(StopNodeAndReadSummary(node, &run->summary)) << "the peer's " << run->result;
   run->log = ReadTextFile(dir + "/node.log");
   std::printf("%s\n%s\nnode peak RSS %ld kB\n", run->result.c_str(), run->summary.c_str(),
               run->node_hwm_kb);

@@ -187,14 +187,49 @@ inline ::testing::AssertionResult SimulateSequence(const std::string& sim,
   return ::testing::AssertionSuccess();
 }
 
+inline std::string ReadTextFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// The last `n` lines of `text`.
+inline std::string LastLines(const std::string& text, int n) {
+  size_t start = text.size();  // one past the text's last line (its newline excluded)
+  if (start > 0 && text[start - 1] == '\n') --start;
+  for (int i = 0; i < n; ++i) {
+    const size_t nl = start == 0 ? std::string::npos : text.rfind('\n', start - 1);
+    if (nl == std::string::npos) return text;
+    start = nl;
+  }
+  return text.substr(start + 1);
+}
+
 // Stops a running ppf_node with `signal` (it drains, flushes and reports), reads its
 // PPF_NODE_SUMMARY line and expects exit status 0.
 inline ::testing::AssertionResult StopNodeAndReadSummary(ppf::dds::ChildProcess& node,
                                                          std::string* summary,
                                                          int signal = SIGINT) {
   node.Signal(signal);
+  const auto signalled = std::chrono::steady_clock::now();
   if (!node.WaitForLine("PPF_NODE_SUMMARY", summary, std::chrono::seconds(30))) {
-    return ::testing::AssertionFailure() << "no PPF_NODE_SUMMARY within 30 s of the signal";
+    // An exit (a sanitizer report, a crash) and a stop that hangs are different bugs: say which,
+    // with the end of the node's log (where it was, or the report).
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - signalled)
+                         .count();
+    auto failure = ::testing::AssertionFailure();
+    if (node.stdout_closed()) {
+      failure << "ppf_node closed stdout " << s << " s after the signal without a "
+              << "PPF_NODE_SUMMARY (exit status " << node.Wait(std::chrono::seconds(10)) << ")";
+    } else {
+      failure << "no PPF_NODE_SUMMARY within " << s << " s of the signal (still running)";
+    }
+    if (!node.stderr_file().empty()) {
+      failure << "; end of " << node.stderr_file() << ":\n"
+              << LastLines(ReadTextFile(node.stderr_file()), 40);
+    }
+    return failure;
   }
   const int status = node.Wait(std::chrono::seconds(10));
   if (!ppf::dds::ExitedWith(status, 0)) {
@@ -203,12 +238,6 @@ inline ::testing::AssertionResult StopNodeAndReadSummary(ppf::dds::ChildProcess&
   return ::testing::AssertionSuccess();
 }
 
-inline std::string ReadTextFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 // Lines of `text` containing `needle`.
 inline int CountLinesWith(const std::string& text, const std::string& needle) {

@@ -33,6 +33,7 @@ class ChildProcess {
              const std::string& stderr_file = "") {
     int fds[2];
     if (pipe(fds) != 0) return false;
+    stderr_file_ = stderr_file;
     pid_ = fork();
     if (pid_ < 0) return false;
     if (pid_ == 0) {
@@ -62,6 +63,10 @@ class ChildProcess {
   }
 
   pid_t pid() const { return pid_; }
+  // Where the child's stderr goes ("" = inherited).
+  const std::string& stderr_file() const { return stderr_file_; }
+  // Whether stdout reached EOF (the child closed it: it exited, or is exiting).
+  bool stdout_closed() const { return out_fd_ < 0; }
 
   // Next line of the child's stdout, or false if none arrives within `timeout` / on EOF.
   bool ReadLine(std::string* line, std::chrono::milliseconds timeout) {
@@ -145,6 +150,7 @@ class ChildProcess {
   int out_fd_ = -1;
   int status_ = -1;
   std::string buffer_;
+  std::string stderr_file_;
 };
 
 inline bool ExitedWith(int status, int code) {

@@ -238,7 +238,6 @@ inline ::testing::AssertionResult StopNodeAndReadSummary(ppf::dds::ChildProcess&
   return ::testing::AssertionSuccess();
 }
 
-
 // Lines of `text` containing `needle`.
 inline int CountLinesWith(const std::string& text, const std::string& needle) {
   std::stringstream ss(text);

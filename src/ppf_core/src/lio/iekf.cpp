@@ -120,34 +120,106 @@ struct NormalEquations {
   Vec6 Jtr = Vec6::Zero();
 };
 
+// Adds w j j^T to the lower triangle of M; the upper one is filled once, at the end.
+inline void AddLower(double w, const Vec6& j, Mat6* M) {
+  for (int c = 0; c < 6; ++c) {
+    const double wj = w * j(c);
+    for (int r = c; r < 6; ++r) (*M)(r, c) += wj * j(r);
+  }
+}
+
+// Weighted moments of a group's points (IMU frame) about its first point q0: s0 = sum w,
+// s1 = sum w d, s2 = sum w d d^T with d = q - q0 (about q0, so the residual sums do not cancel
+// terms of the size of the range).
+struct Moments {
+  double s0 = 0.0;
+  Eigen::Vector3d s1 = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d s2 = Eigen::Matrix3d::Zero();
+  void Add(double w, const Eigen::Vector3d& d) {
+    s0 += w;
+    s1 += w * d;
+    s2.noalias() += (w * d) * d.transpose();
+  }
+};
+
+// Rows that share one plane (n, offset) -- the skeleton points matched to one patch come in
+// runs -- enter through their moments, exactly: with m = R^T n, a row's J = [q x m; n] and
+// r = r0 + m . d (r0 the residual at q0), so sum w J J^T and sum w J r are linear in s0, s1, s2.
+void AddGroup(const Eigen::Vector3d& q0, const Eigen::Vector3d& n, const Eigen::Vector3d& m,
+              double r0, const Moments& w, const Moments& w_noise, NormalEquations* ne) {
+  // q x m = K^T q with K the cross-product matrix of m.
+  Eigen::Matrix3d K;
+  K << 0.0, -m.z(), m.y(), m.z(), 0.0, -m.x(), -m.y(), m.x(), 0.0;
+  const auto add_info = [&](const Moments& g, Mat6* M) {
+    const Eigen::Vector3d q1 = g.s0 * q0 + g.s1;  // sum w q
+    const Eigen::Matrix3d q2 = g.s0 * q0 * q0.transpose() + q0 * g.s1.transpose() +
+                               g.s1 * q0.transpose() + g.s2;  // sum w q q^T
+    M->topLeftCorner<3, 3>() += K.transpose() * q2 * K;
+    M->bottomLeftCorner<3, 3>() += n * (K.transpose() * q1).transpose();
+    M->bottomRightCorner<3, 3>() += g.s0 * n * n.transpose();
+  };
+  add_info(w, &ne->JtJ);
+  add_info(w_noise, &ne->JtJ_noise);
+  const Eigen::Vector3d q1 = w_noise.s0 * q0 + w_noise.s1;
+  ne->Jtr.head<3>() += K.transpose() * (r0 * q1 + q0 * w_noise.s1.dot(m) + w_noise.s2 * m);
+  ne->Jtr.tail<3>() += (r0 * w_noise.s0 + m.dot(w_noise.s1)) * n;
+}
+
 NormalEquations BuildNormalEquations(const IekfOptions& options,
                                      const Eigen::Isometry3d& T_imu_lidar, const NavState& x,
                                      const std::vector<PointPlaneRow>& rows) {
   // Serial: a few thousand 6-vectors cost less than waking a thread team.
-  const long n = static_cast<long>(rows.size());
-  std::vector<Vec6> J(rows.size());
-  std::vector<double> r(rows.size());
+  const size_t n = rows.size();
   const Eigen::Matrix3d R = x.R_world_imu;
   const Eigen::Vector3d p = x.p_world_imu;
-  for (long i = 0; i < n; ++i) {
-    const PointPlaneRow& row = rows[static_cast<size_t>(i)];
-    const Eigen::Vector3d p_imu = T_imu_lidar * row.point_lidar;
-    r[static_cast<size_t>(i)] = row.normal_world.dot(R * p_imu + p) + row.offset;
-    Vec6& j = J[static_cast<size_t>(i)];
-    j.head<3>() = p_imu.cross(R.transpose() * row.normal_world);
-    j.tail<3>() = row.normal_world;
-  }
   NormalEquations ne;
   const double ang_var = options.laser_angular_std * options.laser_angular_std;
   const double lin_var = options.laser_point_std * options.laser_point_std;
-  for (long i = 0; i < n; ++i) {
-    const PointPlaneRow& row = rows[static_cast<size_t>(i)];
-    const Vec6& j = J[static_cast<size_t>(i)];
-    const Mat6 jjt = j * j.transpose();
-    ne.JtJ.noalias() += row.weight * jjt;
-    const double w = row.weight * lin_var / (lin_var + ang_var * row.point_lidar.squaredNorm());
-    ne.JtJ_noise.noalias() += w * jjt;
-    ne.Jtr.noalias() += w * j * r[static_cast<size_t>(i)];
+  const auto noise_weight = [&](const PointPlaneRow& row) {
+    return row.weight * lin_var / (lin_var + ang_var * row.point_lidar.squaredNorm());
+  };
+  const auto same_plane = [&](const PointPlaneRow& a, const PointPlaneRow& b) {
+    return a.offset == b.offset && a.normal_world == b.normal_world;
+  };
+  // Below this many rows a plane's moments cost more than its rows.
+  constexpr size_t kMinGroup = 4;
+  size_t i = 0;
+  while (i < n) {
+    const PointPlaneRow& first = rows[i];
+    size_t end = i + 1;
+    while (end < n && same_plane(first, rows[end])) ++end;
+    const Eigen::Vector3d m = R.transpose() * first.normal_world;
+    if (end - i >= kMinGroup) {
+      const Eigen::Vector3d q0 = T_imu_lidar * first.point_lidar;
+      Moments w, w_noise;
+      for (size_t k = i; k < end; ++k) {
+        const Eigen::Vector3d d = T_imu_lidar * rows[k].point_lidar - q0;
+        w.Add(rows[k].weight, d);
+        w_noise.Add(noise_weight(rows[k]), d);
+      }
+      const double r0 = first.normal_world.dot(R * q0 + p) + first.offset;
+      AddGroup(q0, first.normal_world, m, r0, w, w_noise, &ne);
+    } else {
+      for (size_t k = i; k < end; ++k) {
+        const PointPlaneRow& row = rows[k];
+        const Eigen::Vector3d q = T_imu_lidar * row.point_lidar;
+        const double r = row.normal_world.dot(R * q + p) + row.offset;
+        Vec6 j;
+        j.head<3>() = q.cross(m);
+        j.tail<3>() = row.normal_world;
+        AddLower(row.weight, j, &ne.JtJ);
+        const double w = noise_weight(row);
+        AddLower(w, j, &ne.JtJ_noise);
+        ne.Jtr.noalias() += (w * r) * j;
+      }
+    }
+    i = end;
+  }
+  for (int c = 1; c < 6; ++c) {
+    for (int r = 0; r < c; ++r) {
+      ne.JtJ(r, c) = ne.JtJ(c, r);
+      ne.JtJ_noise(r, c) = ne.JtJ_noise(c, r);
+    }
   }
   return ne;
 }

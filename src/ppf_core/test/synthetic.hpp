@@ -260,6 +260,11 @@ inline CloudBuffer MakeCloud(const std::vector<SimPoint>& pts, double t_begin, d
         std::memcpy(p + 16, &u, 4);
         break;
       }
+      case FieldType::kInt32: {
+        const int32_t v32 = static_cast<int32_t>(std::llround(value));
+        std::memcpy(p + 16, &v32, 4);
+        break;
+      }
       default:
         break;
     }

@@ -203,8 +203,8 @@ inline float LoadFloat32(const uint8_t* p) {
 }
 
 // Where DecodeFloat32Range takes each point's time from (TimeMap's three cases, the field's type
-// split): chosen once per cloud, not per point.
-enum class TimeSource { kRaw, kFieldFloat32, kFieldOther, kNone };
+// split): chosen once per cloud, not per point. uint32 is Ouster's nanosecond `t`.
+enum class TimeSource { kRaw, kFieldFloat32, kFieldUint32, kFieldOther, kNone };
 
 // Every field float32 (nearly every driver): one pass writing straight into the output, with
 // the general path's values and validity test (a non-finite or > 1e30 coordinate fails
@@ -231,6 +231,8 @@ void DecodeFloat32Range(const CloudView& cloud, const PointFields& f, const Time
       t = base + raw[i] * scale;
     } else if constexpr (kTime == TimeSource::kFieldFloat32) {
       t = base + ReadFloat32(p + ot) * scale;
+    } else if constexpr (kTime == TimeSource::kFieldUint32) {
+      t = base + Load<uint32_t>(p + ot) * scale;
     } else if constexpr (kTime == TimeSource::kFieldOther) {
       t = base + ReadAs(p + ot, time_type) * scale;
     } else {
@@ -279,6 +281,9 @@ DecodeRangeFn PickDecodeRange(const PointFields& f, const TimeMap& times) {
   if (times.field == nullptr) return PickDecodeRange<TimeSource::kNone>(intensity);
   if (times.field->type == FieldType::kFloat32) {
     return PickDecodeRange<TimeSource::kFieldFloat32>(intensity);
+  }
+  if (times.field->type == FieldType::kUint32) {
+    return PickDecodeRange<TimeSource::kFieldUint32>(intensity);
   }
   return PickDecodeRange<TimeSource::kFieldOther>(intensity);
 }

@@ -485,7 +485,8 @@ test::CloudBuffer WithFloat64Xyz(const test::CloudBuffer& f32) {
 
 // The float32 fast path keeps exactly the points, values and counts of the general path, at the
 // edges of its tests too: coordinates at the largest float below 1e30 and the next one up, NaN
-// and infinities, intensities the same; for a float32, an integer and no time field.
+// and infinities, intensities the same; for a float32, a uint32 (Ouster's nanoseconds, a path of
+// its own), another integer and no time field.
 TEST(TimeField, Float32PathEqualsTheGeneralPath) {
   std::vector<SimPoint> pts = StaticScan(2.0);
   ASSERT_GT(pts.size(), 100u);
@@ -503,9 +504,11 @@ TEST(TimeField, Float32PathEqualsTheGeneralPath) {
   TimeEncoding u32;
   u32.type = FieldType::kUint32;
   u32.unit_s = 1e-9;
+  TimeEncoding i32 = u32;
+  i32.type = FieldType::kInt32;
   TimeEncoding none;
   none.name = "";
-  for (const TimeEncoding& enc : {f32, u32, none}) {
+  for (const TimeEncoding& enc : {f32, u32, i32, none}) {
     test::CloudBuffer fast = test::MakeCloud(pts, 2.0, pts.back().t, enc);
     for (size_t j = 0; j < 8; ++j) {
       std::memcpy(fast.bytes.data() + (60 + 7 * j) * fast.view.point_step + 12, &intensities[j], 4);

@@ -93,7 +93,9 @@ void ForEachPointIn(const CloudView& cloud, size_t begin, size_t end, Visit&& vi
   uint32_t col = static_cast<uint32_t>(begin % cloud.width);
   for (uint64_t row = begin / cloud.width; i < end; ++row, col = 0) {
     const uint8_t* p = cloud.data + row * row_step + static_cast<uint64_t>(col) * cloud.point_step;
-    for (; col < cloud.width && i < end; ++col, ++i, p += cloud.point_step) visit(i, p);
+    // One bound per row, not two tests per point.
+    const size_t row_end = std::min(end, i + (cloud.width - col));
+    for (; i < row_end; ++i, p += cloud.point_step) visit(i, p);
   }
 }
 

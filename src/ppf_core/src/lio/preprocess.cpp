@@ -107,24 +107,28 @@ void VoxelGridDownsampler::Grid::Accumulate(double t_ref, ForEach&& for_each) {
   // The parallel path knows the keys ahead: it prefetches the slot of a later key, since the
   // slot load misses the cache on most points.
   const auto prefetch = [&](uint64_t key) { __builtin_prefetch(&slots[Mix(key) >> shift]); };
+  // The voxel count in a local too: read from acc per point, it cost a load and a division.
+  size_t voxels = acc.size();
+  Accumulator* accs = acc.data();
   const auto add = [&](uint64_t key, const TimedPoint& tp, size_t input_index) {
     size_t h = Mix(key) >> shift;
     while (slots[h].generation == gen && slots[h].key != key) h = (h + 1) & mask;
     Slot& slot = slots[h];
     uint32_t index = slot.index;
     if (slot.generation != gen) {
-      index = static_cast<uint32_t>(acc.size());
+      index = static_cast<uint32_t>(voxels++);
       slot = Slot{key, gen, index};
       acc.emplace_back();
+      accs = acc.data();
       if (kRecordFirst) first.push_back(static_cast<uint32_t>(input_index));
-      if (2 * acc.size() > table.size()) {
-        Reserve(acc.size() * 2);  // moves slots, not indices
+      if (2 * voxels > mask + 1) {
+        Reserve(voxels * 2);  // moves slots, not indices
         slots = table.data();
         mask = table.size() - 1;
         shift = 64 - __builtin_ctzll(table.size());
       }
     }
-    Accumulator& a = acc[index];
+    Accumulator& a = accs[index];
     a.x += tp.p.x();
     a.y += tp.p.y();
     a.z += tp.p.z();
@@ -170,8 +174,11 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
   g.Begin(in.size() / stride / 8);
   size_t valid = 0;
   g.Accumulate<false>(km.t_ref, [&](auto&& add, auto&&) {
-    for (size_t i = 0; i < in.size(); i += stride) {
-      const TimedPoint& tp = in[i];
+    // Locals: the accumulator stores could alias in's size, reloaded per point otherwise.
+    const TimedPoint* points = in.data();
+    const size_t n = in.size();
+    for (size_t i = 0; i < n; i += stride) {
+      const TimedPoint& tp = points[i];
       if (!km.Keep(tp)) continue;
       ++valid;
       add(km.Key(tp), tp, i);

@@ -16,13 +16,23 @@ constexpr size_t kMaxGridThreads = 64;
 
 // 20 bits per axis (+-2^19 voxels, +-262 km at 0.5 m: the scan is in the sensor frame) and
 // 4 bits of time bucket.
-uint64_t PackKey(int64_t x, int64_t y, int64_t z, int64_t bucket) {
-  constexpr int64_t kBias = int64_t{1} << 19;
-  constexpr uint64_t kMask = (uint64_t{1} << 20) - 1;
-  return ((static_cast<uint64_t>(x + kBias) & kMask) << 44) |
-         ((static_cast<uint64_t>(y + kBias) & kMask) << 24) |
-         ((static_cast<uint64_t>(z + kBias) & kMask) << 4) |
-         static_cast<uint64_t>(std::clamp<int64_t>(bucket, 0, 15));
+constexpr int64_t kKeyBias = int64_t{1} << 19;
+constexpr uint64_t kKeyAxisMask = (uint64_t{1} << 20) - 1;
+
+// floor(v) + kKeyBias for a voxel coordinate v (a float product) by one truncation, v >= -2^19
+// (all the key's range holds): in double, v + 2^19 is exact for |v| >= 2^-10 and rounds to
+// within 2^-34 of it below that, where it is truncated to the same integer, except that
+// -2^-35 <= v < 0 rounds up to 2^19: a point within 2^-35 voxel below the face at 0 (a float
+// artefact of a point on it) joins voxel 0. An exact floor cost a truncation, a conversion back
+// and a compare per axis.
+uint64_t BiasedFloor(float v) {
+  return static_cast<uint64_t>(static_cast<int64_t>(static_cast<double>(v) +
+                                                    static_cast<double>(kKeyBias)));
+}
+
+uint64_t PackKey(uint64_t biased_x, uint64_t biased_y, uint64_t biased_z, int64_t bucket) {
+  return ((biased_x & kKeyAxisMask) << 44) | ((biased_y & kKeyAxisMask) << 24) |
+         ((biased_z & kKeyAxisMask) << 4) | static_cast<uint64_t>(std::clamp<int64_t>(bucket, 0, 15));
 }
 
 uint64_t Mix(uint64_t key) { return key * 0x9E3779B97F4A7C15ull; }
@@ -34,14 +44,6 @@ int Owner(uint64_t key, int threads) {
   return static_cast<int>((h * static_cast<uint64_t>(threads)) >> 32);
 }
 
-// floor() for the voxel index of a range-filtered (finite, bounded) coordinate: truncation, one
-// less for negative non-integers. Equal to std::floor there (the truncation of a float is a float),
-// without the rounding-mode sequence the compiler emits for floorf on baseline x86-64.
-int64_t FloorToInt(float v) {
-  const int64_t i = static_cast<int64_t>(v);
-  return i - (v < static_cast<float>(i) ? 1 : 0);
-}
-
 // Range filter and voxel key of one point, shared by both paths.
 struct KeyMaker {
   float min_r2, max_r2, inv;
@@ -51,8 +53,8 @@ struct KeyMaker {
     return r2 >= min_r2 && r2 <= max_r2;
   }
   uint64_t Key(const TimedPoint& tp) const {
-    return PackKey(FloorToInt(tp.p.x() * inv), FloorToInt(tp.p.y() * inv),
-                   FloorToInt(tp.p.z() * inv), static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
+    return PackKey(BiasedFloor(tp.p.x() * inv), BiasedFloor(tp.p.y() * inv),
+                   BiasedFloor(tp.p.z() * inv), static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
   }
 };
 

@@ -127,8 +127,15 @@ TEST(Preprocess, DownsampleThenDeskewEqualsDeskewThenDownsample) {
   std::vector<double> t_min(kept.size(), 1e30), t_max(kept.size(), -1e30);
   std::vector<int> n(kept.size(), 0);
   std::map<std::tuple<int, int, int, int>, size_t> slot;
+  // The grid's voxel of a coordinate v (in voxels): floor(v), except that |v| <= 2^-35 counts
+  // as 0 (preprocess.cpp, BiasedFloor): the horizontal beam's points here have such z.
+  const auto grid_index = [](float c) {
+    const float v = c * 2.0f;
+    return static_cast<int>(std::abs(v) <= 0x1p-35f ? 0.0f : std::floor(v));
+  };
   for (size_t i = 0; i < timed.size(); ++i) {
-    const VoxelKey k = ToVoxelKey(timed[i].p, 2.0);
+    const Eigen::Vector3f& p = timed[i].p;
+    const VoxelKey k{grid_index(p.x()), grid_index(p.y()), grid_index(p.z())};
     const int bucket = static_cast<int>((timed[i].t - t_first) / options.time_bucket_s);
     const auto it = slot.emplace(std::make_tuple(k.x, k.y, k.z, bucket), slot.size()).first;
     sum[it->second] += all[i].cast<double>();

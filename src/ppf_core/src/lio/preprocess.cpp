@@ -26,13 +26,14 @@ constexpr uint64_t kKeyAxisMask = (uint64_t{1} << 20) - 1;
 // artefact of a point on it) joins voxel 0. An exact floor cost a truncation, a conversion back
 // and a compare per axis.
 uint64_t BiasedFloor(float v) {
-  return static_cast<uint64_t>(static_cast<int64_t>(static_cast<double>(v) +
-                                                    static_cast<double>(kKeyBias)));
+  return static_cast<uint64_t>(
+      static_cast<int64_t>(static_cast<double>(v) + static_cast<double>(kKeyBias)));
 }
 
 uint64_t PackKey(uint64_t biased_x, uint64_t biased_y, uint64_t biased_z, int64_t bucket) {
   return ((biased_x & kKeyAxisMask) << 44) | ((biased_y & kKeyAxisMask) << 24) |
-         ((biased_z & kKeyAxisMask) << 4) | static_cast<uint64_t>(std::clamp<int64_t>(bucket, 0, 15));
+         ((biased_z & kKeyAxisMask) << 4) |
+         static_cast<uint64_t>(std::clamp<int64_t>(bucket, 0, 15));
 }
 
 uint64_t Mix(uint64_t key) { return key * 0x9E3779B97F4A7C15ull; }

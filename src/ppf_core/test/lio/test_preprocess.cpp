@@ -128,7 +128,8 @@ TEST(Preprocess, DownsampleThenDeskewEqualsDeskewThenDownsample) {
   std::vector<int> n(kept.size(), 0);
   std::map<std::tuple<int, int, int, int>, size_t> slot;
   // The grid's voxel of a coordinate v (in voxels): floor(v), except that |v| <= 2^-35 counts
-  // as 0 (preprocess.cpp, BiasedFloor): the horizontal beam's points here have such z.
+  // as 0 (preprocess.cpp, BiasedFloor): 16 points of this scan have such an x and 16 such a
+  // y (the firings along the axes, where the cosine of a right angle is not 0).
   const auto grid_index = [](float c) {
     const float v = c * 2.0f;
     return static_cast<int>(std::abs(v) <= 0x1p-35f ? 0.0f : std::floor(v));

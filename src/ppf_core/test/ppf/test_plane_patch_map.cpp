@@ -107,6 +107,42 @@ TEST(PlanePatchMap, BoundedAroundTheSensorAndInCells) {
   EXPECT_EQ(map.num_cells(), 0u);
 }
 
+// Insert keeps the last cell it looked up (a plane's points come several to a cell): a copy of
+// the map, a cell dropped by the bounds, and a cleared map must each take a fresh lookup.
+TEST(PlanePatchMap, InsertsGoToTheMapsOwnCurrentCells) {
+  PlanePatchMapOptions options;
+  options.min_points = 3;
+  options.min_spread_ratio = 0.0;
+  const double min_cos = std::cos(10.0 * M_PI / 180.0);
+  const auto points_at = [&](const PlanePatchMap& m, const Eigen::Vector3d& p) {
+    const PlanePatchMap::Patch* patch = m.Find(p, kUp, min_cos);
+    return patch == nullptr ? 0.0 : patch->moments.count;
+  };
+  const Eigen::Vector3d c(1.0, 1.0, 0.0);
+  PlanePatchMap a(options);
+  for (int i = 0; i < 5; ++i) a.Insert({0.2 + 0.3 * i, 0.3 + 0.25 * (i % 3), 0.0}, kUp);
+  PlanePatchMap b = a;  // the copy's next insert, in the same cell, is the copy's alone
+  b.Insert({1.5, 1.5, 0.0}, kUp);
+  a.FinishInsert();
+  b.FinishInsert();
+  EXPECT_EQ(points_at(a, c), 5.0);
+  EXPECT_EQ(points_at(b, c), 6.0);
+
+  // The cell dropped by RemoveFarFrom, then fed again: a new cell, not the erased one.
+  a.Insert({1.2, 0.4, 0.0}, kUp);
+  a.RemoveFarFrom({100.0, 0.0, 0.0}, 10.0);
+  EXPECT_EQ(a.num_cells(), 0u);
+  for (int i = 0; i < 4; ++i) a.Insert({0.2 + 0.4 * i, 0.3 + 0.3 * (i % 2), 0.0}, kUp);
+  a.FinishInsert();
+  EXPECT_EQ(a.num_cells(), 1u);
+  EXPECT_EQ(points_at(a, c), 4.0);
+  a.Insert({0.6, 0.6, 0.0}, kUp);
+  a.Clear();
+  a.Insert({0.7, 0.7, 0.0}, kUp);
+  EXPECT_EQ(a.num_cells(), 1u);
+  EXPECT_EQ(a.num_patches(), 1u);
+}
+
 TEST(PlanePatchMap, SkeletonResidualsUseThePatchOfTheirCellNotTheWindow) {
   // The window holds last scan's ground fit z = 0.2 (tilted world, drifted pose); the patch map
   // remembers the ground at z = 0. The skeleton point at z = 0.02 must be matched to the patch.

@@ -98,6 +98,10 @@ class PlanePatchMap {
   std::vector<uint64_t> touched_;  // cells with a changed patch since the last FinishInsert
   uint64_t generation_ = 0;
   size_t num_patches_ = 0;
+  // The cell of the last Insert (see there).
+  Cell* last_cell_ = nullptr;
+  uint64_t last_key_ = 0;
+  const PlanePatchMap* last_owner_ = nullptr;
 };
 
 }  // namespace ppf

@@ -16,19 +16,13 @@ constexpr size_t kMaxGridThreads = 64;
 
 // 20 bits per axis (+-2^19 voxels, +-262 km at 0.5 m: the scan is in the sensor frame) and
 // 4 bits of time bucket.
-constexpr int64_t kKeyBias = int64_t{1} << 19;
+constexpr double kKeyBias = static_cast<double>(int64_t{1} << 19);
 constexpr uint64_t kKeyAxisMask = (uint64_t{1} << 20) - 1;
 
-// floor(v) + kKeyBias for a voxel coordinate v (a float product) by one truncation, v >= -2^19
-// (all the key's range holds): in double, v + 2^19 is exact for |v| >= 2^-10 and rounds to
-// within 2^-34 of it below that, where it is truncated to the same integer, except that
-// -2^-35 <= v < 0 rounds up to 2^19: a point within 2^-35 voxel below the face at 0 (a float
-// artefact of a point on it) joins voxel 0. An exact floor cost a truncation, a conversion back
-// and a compare per axis.
-uint64_t BiasedFloor(float v) {
-  return static_cast<uint64_t>(
-      static_cast<int64_t>(static_cast<double>(v) + static_cast<double>(kKeyBias)));
-}
+// The key's floor: BiasedFloor (voxel_key.hpp) of the float product in double, v >= -2^19 (all the
+// key's range holds). A point within 2^-34 voxel below a face joins the voxel above; an exact floor
+// cost a truncation, a conversion back and a compare per axis.
+uint64_t KeyAxis(float v) { return BiasedFloor(static_cast<double>(v), kKeyBias); }
 
 uint64_t PackKey(uint64_t biased_x, uint64_t biased_y, uint64_t biased_z, int64_t bucket) {
   return ((biased_x & kKeyAxisMask) << 44) | ((biased_y & kKeyAxisMask) << 24) |
@@ -54,8 +48,8 @@ struct KeyMaker {
     return r2 >= min_r2 && r2 <= max_r2;
   }
   uint64_t Key(const TimedPoint& tp) const {
-    return PackKey(BiasedFloor(tp.p.x() * inv), BiasedFloor(tp.p.y() * inv),
-                   BiasedFloor(tp.p.z() * inv), static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
+    return PackKey(KeyAxis(tp.p.x() * inv), KeyAxis(tp.p.y() * inv), KeyAxis(tp.p.z() * inv),
+                   static_cast<int64_t>((tp.t - t_ref) * inv_bucket));
   }
 };
 

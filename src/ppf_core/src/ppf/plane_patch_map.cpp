@@ -5,6 +5,8 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "ppf_core/lio/voxel_key.hpp"
+
 namespace ppf {
 
 PlanePatchMap::PlanePatchMap(const PlanePatchMapOptions& options) : options_(options) {
@@ -22,13 +24,9 @@ uint64_t PlanePatchMap::KeyOf(const Eigen::Vector3d& p) const {
   // 21 bits per axis: +-2^20 cells (+-2000 km at 2 m).
   constexpr double kBias = static_cast<double>(int64_t{1} << 20);
   constexpr uint64_t kMask = (uint64_t{1} << 21) - 1;
-  // floor(c) + 2^20 as one truncation of c + 2^20 (non-negative within the range): the same
-  // integer except where the sum rounds up to one, i.e. c within 2^-33 cell below a face (a
-  // fraction of a nanometre), which then joins the cell above. std::floor is a library call on
-  // the x86-64 baseline, three per point inserted or looked up.
-  const auto axis = [&](double v) {
-    return static_cast<uint64_t>(static_cast<int64_t>(v * inv_cell_ + kBias)) & kMask;
-  };
+  // The cell's floor by BiasedFloor (voxel_key.hpp): a coordinate within 2^-33 cell below a face
+  // joins the cell above.
+  const auto axis = [&](double v) { return BiasedFloor(v * inv_cell_, kBias) & kMask; };
   return (axis(p.x()) << 42) | (axis(p.y()) << 21) | axis(p.z());
 }
 

@@ -30,4 +30,13 @@ inline VoxelKey ToVoxelKey(const Eigen::Vector3f& p, double inv_resolution) {
                   static_cast<int32_t>(std::floor(p.z() * inv_resolution))};
 }
 
+// floor(v) + bias for a cell coordinate v >= -bias, by one truncation of the double v + bias
+// (non-negative in that range), where std::floor is a library call on the x86-64 baseline. It is
+// the same integer except where the sum rounds up to one: v within half an ulp of v + bias below a
+// face (at most bias * 2^-53 cell: a float or double artefact of a point on the face), which then
+// joins the cell above. The packed keys of the voxel grid and of the plane patch map use it.
+inline uint64_t BiasedFloor(double v, double bias) {
+  return static_cast<uint64_t>(static_cast<int64_t>(v + bias));
+}
+
 }  // namespace ppf

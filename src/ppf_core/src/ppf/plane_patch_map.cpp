@@ -31,17 +31,19 @@ uint64_t PlanePatchMap::KeyOf(const Eigen::Vector3d& p) const {
 }
 
 void PlanePatchMap::Insert(const Eigen::Vector3d& p_world, const Eigen::Vector3d& n_world) {
+  InsertHint hint;
+  Insert(p_world, n_world, &hint);
+}
+
+void PlanePatchMap::Insert(const Eigen::Vector3d& p_world, const Eigen::Vector3d& n_world,
+                           InsertHint* hint) {
   if (!p_world.allFinite() || !n_world.allFinite()) return;
   const uint64_t key = KeyOf(p_world);
-  // A plane's points come in scan order, mostly several in one cell: its hash lookup once. The
-  // element stays where it is while cells are only added (until FinishInsert, RemoveFarFrom or
-  // Clear); the owner check ignores a cache copied with the map.
-  if (last_cell_ == nullptr || last_owner_ != this || key != last_key_) {
-    last_cell_ = &cells_[key];
-    last_key_ = key;
-    last_owner_ = this;
+  if (hint->cell_ == nullptr || key != hint->key_) {
+    hint->cell_ = &cells_[key];
+    hint->key_ = key;
   }
-  Cell& cell = *last_cell_;
+  Cell& cell = *hint->cell_;
   cell.last_insert = generation_ + 1;
   const double min_cos = same_surface_cos_;
   Patch* patch = nullptr;
@@ -94,7 +96,6 @@ void PlanePatchMap::FinishInsert() {
     for (Patch& p : it->second.patches) Refit(&p);
   }
   touched_.clear();
-  last_cell_ = nullptr;
   ++generation_;
   if (cells_.size() > options_.max_cells) {
     // Drop the least recently fed cells down to 90 % of the bound (amortised: rarely runs).
@@ -133,7 +134,6 @@ const PlanePatchMap::Patch* PlanePatchMap::Find(const Eigen::Vector3d& p_world,
 
 void PlanePatchMap::RemoveFarFrom(const Eigen::Vector3d& center, double radius) {
   const double r2 = radius * radius;
-  last_cell_ = nullptr;
   for (auto it = cells_.begin(); it != cells_.end();) {
     if (it->second.patches.empty() ||
         (it->second.patches.front().moments.centroid - center).squaredNorm() > r2) {
@@ -148,7 +148,6 @@ void PlanePatchMap::RemoveFarFrom(const Eigen::Vector3d& center, double radius) 
 void PlanePatchMap::Clear() {
   cells_.clear();
   touched_.clear();
-  last_cell_ = nullptr;
   num_patches_ = 0;
 }
 

@@ -46,6 +46,7 @@ void SkeletonTracker::Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_
   for (const FittedPlane& f : prefit_.planes) {
     normals_world_.push_back(T_world_lidar.linear() * f.plane.n);
   }
+  PlanePatchMap::InsertHint hint;
   for (size_t k = 0; k < n; ++k) {
     const int idx = prefit_.skeleton_indices[k];
     const int pl = prefit_.skeleton_plane[k];
@@ -53,7 +54,8 @@ void SkeletonTracker::Finish(const ScanFrame& frame, const Eigen::Isometry3d& T_
         pl >= static_cast<int>(prefit_.planes.size())) {
       continue;
     }
-    patches_.Insert(T_world_lidar * frame.points_lidar[idx].cast<double>(), normals_world_[pl]);
+    patches_.Insert(T_world_lidar * frame.points_lidar[idx].cast<double>(), normals_world_[pl],
+                    &hint);
   }
   patches_.FinishInsert();
   if (config().patch_radius > 0.0 && ++scans_since_prune_ >= 10) {

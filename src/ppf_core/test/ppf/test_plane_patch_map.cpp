@@ -6,9 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include "ppf_core/lio/residual_provider.hpp"
 #include "ppf_core/ppf/plane_patch_map.hpp"
 #include "ppf_core/ppf/plane_prefitter.hpp"
-#include "ppf_core/lio/residual_provider.hpp"
 #include "ppf_core/ppf/skeleton_residual.hpp"
 #include "ppf_core/ppf/skeleton_window.hpp"
 
@@ -109,7 +109,7 @@ TEST(PlanePatchMap, BoundedAroundTheSensorAndInCells) {
 
 // Insert keeps the last cell it looked up (a plane's points come several to a cell): a copy of
 // the map, a cell dropped by the bounds, and a cleared map must each take a fresh lookup.
-TEST(PlanePatchMap, InsertsGoToTheMapsOwnCurrentCells) {
+TEST(PlanePatchMap, AHintedInsertFeedsTheSameCellsAsAPlainOne) {
   PlanePatchMapOptions options;
   options.min_points = 3;
   options.min_spread_ratio = 0.0;
@@ -118,29 +118,41 @@ TEST(PlanePatchMap, InsertsGoToTheMapsOwnCurrentCells) {
     const PlanePatchMap::Patch* patch = m.Find(p, kUp, min_cos);
     return patch == nullptr ? 0.0 : patch->moments.count;
   };
-  const Eigen::Vector3d c(1.0, 1.0, 0.0);
-  PlanePatchMap a(options);
-  for (int i = 0; i < 5; ++i) a.Insert({0.2 + 0.3 * i, 0.3 + 0.25 * (i % 3), 0.0}, kUp);
-  PlanePatchMap b = a;  // the copy's next insert, in the same cell, is the copy's alone
-  b.Insert({1.5, 1.5, 0.0}, kUp);
-  a.FinishInsert();
-  b.FinishInsert();
-  EXPECT_EQ(points_at(a, c), 5.0);
-  EXPECT_EQ(points_at(b, c), 6.0);
-
-  // The cell dropped by RemoveFarFrom, then fed again: a new cell, not the erased one.
-  a.Insert({1.2, 0.4, 0.0}, kUp);
-  a.RemoveFarFrom({100.0, 0.0, 0.0}, 10.0);
-  EXPECT_EQ(a.num_cells(), 0u);
-  for (int i = 0; i < 4; ++i) a.Insert({0.2 + 0.4 * i, 0.3 + 0.3 * (i % 2), 0.0}, kUp);
-  a.FinishInsert();
-  EXPECT_EQ(a.num_cells(), 1u);
-  EXPECT_EQ(points_at(a, c), 4.0);
-  a.Insert({0.6, 0.6, 0.0}, kUp);
-  a.Clear();
-  a.Insert({0.7, 0.7, 0.0}, kUp);
-  EXPECT_EQ(a.num_cells(), 1u);
-  EXPECT_EQ(a.num_patches(), 1u);
+  // Runs of points in one 2 m cell, then back and forth between cells (0,0), (1,0) and (0,1),
+  // and a second surface in the first cell.
+  std::vector<Eigen::Vector3d> scan;
+  for (int i = 0; i < 5; ++i) scan.emplace_back(0.2 + 0.3 * i, 0.3 + 0.25 * (i % 3), 0.0);
+  for (int i = 0; i < 12; ++i) {
+    scan.emplace_back(i % 3 == 1 ? 2.5 + 0.1 * i : 0.4 + 0.1 * i,
+                      (i % 3 == 2 ? 2.6 : 0.7) + 0.2 * (i % 2), 0.0);
+  }
+  for (int i = 0; i < 4; ++i) scan.emplace_back(0.3 + 0.4 * i, 0.5 + 0.3 * (i % 2), 1.0);
+  const std::vector<Eigen::Vector3d> probes = {
+      {1.0, 1.0, 0.0}, {3.0, 1.0, 0.0}, {1.0, 3.0, 0.0}, {1.0, 1.0, 1.0}};
+  PlanePatchMap plain(options), hinted(options);
+  for (int round = 0; round < 2; ++round) {
+    PlanePatchMap::InsertHint hint;  // one scan's
+    for (const Eigen::Vector3d& p : scan) {
+      plain.Insert(p, kUp);
+      hinted.Insert(p, kUp, &hint);
+    }
+    plain.FinishInsert();
+    hinted.FinishInsert();
+    EXPECT_EQ(hinted.num_cells(), plain.num_cells());
+    EXPECT_EQ(hinted.num_patches(), plain.num_patches());
+    for (const Eigen::Vector3d& q : probes) {
+      EXPECT_EQ(points_at(hinted, q), points_at(plain, q)) << q.transpose();
+    }
+    // Cell (0,0) has the first run's 5 on the ground and the second run's 4 with i % 3 == 0.
+    EXPECT_EQ(points_at(hinted, probes[0]), 5.0 + 4.0);
+    EXPECT_EQ(points_at(hinted, probes[1]), 4.0);
+    EXPECT_EQ(points_at(hinted, probes[2]), 4.0);
+    EXPECT_EQ(points_at(hinted, probes[3]), 4.0);
+    // The cells dropped between scans: the next scan's hint starts afresh on new cells.
+    plain.RemoveFarFrom({100.0, 0.0, 0.0}, 10.0);
+    hinted.RemoveFarFrom({100.0, 0.0, 0.0}, 10.0);
+    ASSERT_EQ(hinted.num_cells(), 0u);
+  }
 }
 
 TEST(PlanePatchMap, SkeletonResidualsUseThePatchOfTheirCellNotTheWindow) {

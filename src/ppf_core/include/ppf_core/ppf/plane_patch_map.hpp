@@ -36,19 +36,19 @@
 namespace ppf {
 
 struct PlanePatchMapOptions {
-  double cell_size = 2.0;         // metres; the ground curves by < 2 mm over 2 m on a 3 % bend
-  int max_patches_per_cell = 3;   // e.g. floor and wall in a corner cell, road and kerb top
+  double cell_size = 2.0;        // metres; the ground curves by < 2 mm over 2 m on a 3 % bend
+  int max_patches_per_cell = 3;  // e.g. floor and wall in a corner cell, road and kerb top
   // A point joins the patch whose normal is within same_surface_deg of its plane's normal and
   // whose centroid is within same_surface_offset along that normal (parallel surfaces, such as a
   // road and the pavement 15 cm above it, are separate patches).
   double same_surface_deg = 20.0;
   double same_surface_offset = 0.1;
-  int min_points = 10;            // a patch with fewer points gives no residual
+  int min_points = 10;  // a patch with fewer points gives no residual
   // ... nor one whose points do not spread at least this fraction of the cell (standard deviation
   // along the second principal axis): a single scan line fixes no normal.
   double min_spread_ratio = 0.11;
-  int max_points = 50;            // then it is frozen: later observations do not move it
-  size_t max_cells = 200000;      // hard bound (oldest cells are dropped first)
+  int max_points = 50;        // then it is frozen: later observations do not move it
+  size_t max_cells = 200000;  // hard bound (oldest cells are dropped first)
 };
 
 class PlanePatchMap {
@@ -64,9 +64,16 @@ class PlanePatchMap {
 
   const PlanePatchMapOptions& options() const { return options_; }
 
+  // The cell of a caller's last Insert: a plane's points come in scan order, mostly several in
+  // one cell, and with a hint they look it up once. Valid for one map until its next
+  // FinishInsert, RemoveFarFrom or Clear (cells are only added in between, and an element of the
+  // hash map stays where it is): a hint lives in the loop that inserts one scan.
+  class InsertHint;
+
   // Adds a skeleton point (world) of a plane with world normal n_world (unit). Call
   // FinishInsert() after a scan's points so the touched patches' planes are refitted once.
   void Insert(const Eigen::Vector3d& p_world, const Eigen::Vector3d& n_world);
+  void Insert(const Eigen::Vector3d& p_world, const Eigen::Vector3d& n_world, InsertHint* hint);
   void FinishInsert();
 
   // The usable patch at p_world whose normal is within acos(min_cos) of n_world and whose plane
@@ -98,10 +105,13 @@ class PlanePatchMap {
   std::vector<uint64_t> touched_;  // cells with a changed patch since the last FinishInsert
   uint64_t generation_ = 0;
   size_t num_patches_ = 0;
-  // The cell of the last Insert (see there).
-  Cell* last_cell_ = nullptr;
-  uint64_t last_key_ = 0;
-  const PlanePatchMap* last_owner_ = nullptr;
+
+ public:
+  class InsertHint {
+    friend class PlanePatchMap;
+    Cell* cell_ = nullptr;
+    uint64_t key_ = 0;
+  };
 };
 
 }  // namespace ppf

@@ -188,6 +188,12 @@ void VoxelMap::BuildOffsets() {
       }
     }
   }
+  // Faces, then edges, then corners: a neighbour across more faces is farther by its lower bound,
+  // so the k best fill from the nearer voxels first and more of the farther ones are skipped.
+  std::stable_sort(offsets_.begin(), offsets_.end(), [](const VoxelKey& a, const VoxelKey& b) {
+    return std::abs(a.x) + std::abs(a.y) + std::abs(a.z) <
+           std::abs(b.x) + std::abs(b.y) + std::abs(b.z);
+  });
 }
 
 }  // namespace ppf

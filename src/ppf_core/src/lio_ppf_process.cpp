@@ -777,9 +777,8 @@ IekfReport LioPpf::Impl::RedeskewVelocity(const DecodedScan& scan,
 // so a heading correction leaves roll and pitch with the IMU.
 namespace {
 constexpr double kTrustTiltRad = 1.0 * M_PI / 180.0;
-// Fewer kNN points met the map than this (in kPpf, a scan of nearly only skeleton points): their
-// share within the fit gate scatters by 0.05 or more from scan to scan, and a sample of the
-// whole scan is searched instead.
+// Fewer of the rows' points met the map than this: their share within the fit gate scatters by
+// 0.05 or more from scan to scan, and a sample of the whole scan is searched instead.
 constexpr size_t kMinAssociated = 100;
 }  // namespace
 
@@ -790,13 +789,20 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const
   const Eigen::Isometry3d& T_il = config.extrinsic.T_imu_lidar;
   if (rep.skipped) return rep;
   const double wide = config.lidar_only.coarse_max_residual;
-  // Every scan: the kNN rows' own associations from the update's last iteration, at the
-  // posterior (no search of the map); their fit and step are what the recent scans' baseline
-  // holds. Only a scan that fails them searches a sample (below), to compare guesses on it.
+  // Every scan: the rows' own associations from the update's last iteration, at the posterior
+  // (no search of the map); their fit and step are what the recent scans' baseline holds. Only a
+  // scan that fails them searches a sample (below), to compare guesses on it. In kPpf the fit
+  // counts the skeleton points against their patches beside the kNN rows: the kNN map holds the
+  // scattered points only, whose share within the fit gate moves by a few hundredths whenever
+  // the pre-fit moves points between the two sets. The step stays the kNN rows' (the bounds of
+  // max_step_pos were set on it; with the skeleton rows it grew on a hand-held walk and set the
+  // search off more often): docs/decisions.md, "Consistency check".
   auto associated_at = [&](const NavState& s, PoseProbe* out) {
     if (!knn->Associations(&associated)) return false;
+    const size_t knn_points = associated.size();
+    if (tracker) tracker->skeleton_provider().AppendAssociations(&associated);
     *out = ProbePoseAssociated(associated, s.T_world_imu() * T_il, config.lidar_only, config.iekf,
-                               wide);
+                               wide, knn_points);
     return out->score.covered >= kMinAssociated;
   };
   ScanFrame sample;

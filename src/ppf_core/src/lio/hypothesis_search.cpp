@@ -192,20 +192,21 @@ PoseProbe ProbePoseAndVelocity(const ScanFrame& frame, const std::vector<float>&
 PoseProbe ProbePoseAssociated(const std::vector<AssociatedPoint>& points,
                               const Eigen::Isometry3d& T_world_lidar,
                               const LidarOnlyOptions& options, const IekfOptions& iekf,
-                              double wide_gate) {
+                              double wide_gate, size_t step_points) {
   PoseProbe probe;
   const Eigen::Vector3d c = T_world_lidar.translation();
   long covered = 0, inliers = 0, rows = 0;
   Eigen::Matrix<double, 6, 6> JtJ = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> Jtr = Eigen::Matrix<double, 6, 1>::Zero();
-  for (const AssociatedPoint& a : points) {
+  for (size_t i = 0; i < points.size(); ++i) {
+    const AssociatedPoint& a = points[i];
     if (!a.covered) continue;
     ++covered;
     if (!a.has_plane) continue;
     const Eigen::Vector3d p = T_world_lidar * a.point_lidar.cast<double>();
     const double r = a.normal.dot(p) + a.d;
     if (std::abs(r) < options.fit_gate) ++inliers;
-    if (!(std::abs(r) < wide_gate)) continue;
+    if (i >= step_points || !(std::abs(r) < wide_gate)) continue;
     ++rows;
     Eigen::Matrix<double, 6, 1> j;
     j.head<3>() = (p - c).cross(a.normal);

@@ -8,6 +8,7 @@
 #include <omp.h>
 #endif
 
+#include "ppf_core/lio/knn_residual.hpp"
 #include "ppf_core/ppf/plane_prefitter.hpp"
 #include "ppf_core/ppf/skeleton_window.hpp"
 
@@ -23,8 +24,10 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
                    double eps, std::vector<SkeletonMatch>* matches,
                    const PlanePatchMap* patches = nullptr, bool window_fallback = true,
                    int num_threads = 0, std::vector<PatchLookup>* lookups = nullptr,
-                   float keep_distance = 0.0f) {
+                   float keep_distance = 0.0f,
+                   std::vector<const PlanePatchMap::Patch*>* found = nullptr) {
   matches->clear();
+  if (found != nullptr) found->assign(skeleton_indices.size(), nullptr);
   const bool have_normals = own_normals.size() == skeleton_indices.size();
   const bool use_patches = patches != nullptr && have_normals && patches->num_cells() > 0;
   if ((window_world.empty() && !use_patches) || skeleton_indices.empty() || !(eps > 0.0)) return;
@@ -79,6 +82,7 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
           }
         }
         if (patch != nullptr) {
+          if (found != nullptr) (*found)[static_cast<size_t>(i)] = patch;
           const double s = patch->plane.SignedDistance(p_w);
           if (std::abs(s) < eps) {
             m.point_index = idx;
@@ -151,6 +155,7 @@ void SkeletonResidualProvider::Reset() {
   skeleton_indices_.clear();
   matches_.clear();
   lookups_.clear();
+  found_.clear();
 }
 
 void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
@@ -165,6 +170,7 @@ void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
   }
   matches_.clear();
   lookups_.clear();
+  found_.clear();
   own_normals_.clear();
   row_weights_.clear();
   const bool need_normals = normal_gate_deg_ > 0.0 || patches_ != nullptr;
@@ -223,7 +229,7 @@ void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lida
   MatchSkeleton(frame_->points_lidar, skeleton_indices_, own_normals_, normal_gate_deg_,
                 T_world_lidar, planes_world_, eps_, &matches_, patches_, window_fallback_,
                 num_threads_, keep_distance_ > 0.0 ? &lookups_ : nullptr,
-                static_cast<float>(keep_distance_));
+                static_cast<float>(keep_distance_), &found_);
   rows->reserve(rows->size() + matches_.size());
   for (const SkeletonMatch& m : matches_) {
     PointPlaneRow row;
@@ -233,6 +239,25 @@ void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lida
     if (!row_weights_.empty()) row.weight = row_weights_[m.point_index];
     rows->push_back(row);
   }
+}
+
+bool SkeletonResidualProvider::AppendAssociations(std::vector<AssociatedPoint>* out) const {
+  if (frame_ == nullptr || patches_ == nullptr || found_.size() != skeleton_indices_.size()) {
+    return false;
+  }
+  out->reserve(out->size() + found_.size());
+  for (size_t j = 0; j < found_.size(); ++j) {
+    AssociatedPoint a;
+    a.point_lidar = frame_->points_lidar[static_cast<size_t>(skeleton_indices_[j])];
+    if (const PlanePatchMap::Patch* patch = found_[j]) {
+      a.covered = true;
+      a.has_plane = true;
+      a.normal = patch->plane.n;
+      a.d = patch->plane.d;
+    }
+    out->push_back(a);
+  }
+  return true;
 }
 
 }  // namespace ppf

@@ -229,6 +229,40 @@ TEST(ProbePoseAssociated, SaysWhatAFreshSearchAtThatPoseSays) {
             0.5 * (off.translation() - truth.translation()).norm());
 }
 
+// kPpf's check scores the kNN associations and the skeleton points' patches together, but takes
+// the step from the kNN rows alone (step_points): the points beyond it count in the fit only.
+TEST(ProbePoseAssociated, PointsBeyondStepPointsCountInTheFitOnly) {
+  RoomFixture f;
+  const Eigen::Isometry3d truth = Pose(Eigen::Vector3d(0.4, 0.1, 0.05), Eigen::Vector3d(0, 0, 0.1));
+  f.Build(truth);
+  const Eigen::Isometry3d off =
+      Pose(Eigen::Vector3d(0.45, 0.05, 0.08), Eigen::Vector3d(0.005, 0.0, 0.12));
+  KnnOptions knn;
+  knn.max_residual = 1.0;
+  KnnResidualProvider provider(knn);
+  provider.BeginScan(f.frame);
+  std::vector<PointPlaneRow> rows;
+  provider.ComputeRows(off, &rows);
+  std::vector<AssociatedPoint> associated;
+  ASSERT_TRUE(provider.Associations(&associated));
+  const size_t half = associated.size() / 2;
+  std::vector<AssociatedPoint> first(associated.begin(), associated.begin() + half);
+
+  const PoseProbe all = ProbePoseAssociated(associated, off, LidarOnlyOptions(), IekfOptions(), 1.0);
+  const PoseProbe split =
+      ProbePoseAssociated(associated, off, LidarOnlyOptions(), IekfOptions(), 1.0, half);
+  const PoseProbe alone = ProbePoseAssociated(first, off, LidarOnlyOptions(), IekfOptions(), 1.0);
+  // The score of every point, the rows and the step of the first half.
+  EXPECT_EQ(split.score.covered, all.score.covered);
+  EXPECT_EQ(split.score.inliers, all.score.inliers);
+  EXPECT_DOUBLE_EQ(split.score.fit, all.score.fit);
+  EXPECT_EQ(split.rows, alone.rows);
+  EXPECT_LT(split.rows, all.rows);
+  EXPECT_LT((split.step_pos - alone.step_pos).norm(), 1e-9);
+  EXPECT_LT((split.step_rot - alone.step_rot).norm(), 1e-9);
+  EXPECT_GT((all.step_pos - alone.step_pos).norm(), 1e-6);
+}
+
 // The consistency check compares a scan's score with the recent scans' of the same kind. The
 // scores below are those of an undisturbed kPpf hand-held walk (60 s indoor VLP-16): kNN
 // associations fit 0.95-1.0, while a scan with too few of them is scored on a searched sample of

@@ -1,8 +1,12 @@
+#include <algorithm>
+#include <cmath>
 #include <map>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "ppf_core/lio/hypothesis_search.hpp"
+#include "ppf_core/lio/knn_residual.hpp"
 #include "ppf_core/ppf/skeleton_tracker.hpp"
 #include "ppf_test_scenes.hpp"
 
@@ -93,6 +97,47 @@ TEST(PpfTracker, LabelsRowsAndWindowThroughTheHooks) {
   tracker.Reset();
   EXPECT_TRUE(tracker.window().empty());
   EXPECT_EQ(tracker.patch_map().num_cells(), 0u);
+}
+
+// The consistency check scores a kPpf scan on its skeleton points too: each with the patch of its
+// surface from the last ComputeRows, scored again at any pose (ProbePoseAssociated).
+TEST(PpfTracker, SkeletonAssociationsScoreAPoseOnThePatches) {
+  PpfConfig cfg = PpfConfigForBeams(64);
+  cfg.plane_least_inliers = 150;
+  SkeletonTracker tracker(cfg);
+  const SkeletonResidualProvider& provider = tracker.skeleton_provider();
+  for (unsigned seed : {50u, 51u, 52u}) {
+    ScanFrame before = MakeFrame(PoseAt(0), seed);
+    tracker.Split(&before);
+    tracker.Finish(before, PoseAt(0));
+  }
+  // The same place seen again (other noise): the cells the first scan filled.
+  ScanFrame frame = MakeFrame(PoseAt(0), 53);
+  tracker.Split(&frame);
+  tracker.residual_provider()->BeginScan(frame);
+  std::vector<AssociatedPoint> associated;
+  EXPECT_FALSE(provider.AppendAssociations(&associated));  // no ComputeRows since BeginScan
+  std::vector<PointPlaneRow> rows;
+  tracker.residual_provider()->ComputeRows(PoseAt(0), &rows);
+  ASSERT_TRUE(provider.AppendAssociations(&associated));
+  const size_t skeleton = tracker.last_prefit().skeleton_indices.size();
+  ASSERT_EQ(associated.size(), skeleton);
+  const size_t covered = static_cast<size_t>(std::count_if(
+      associated.begin(), associated.end(), [](const AssociatedPoint& a) { return a.covered; }));
+  EXPECT_GT(covered, 9 * skeleton / 10);
+  EXPECT_GE(covered, rows.size());   // a row is a covered point within the gate
+  // At the pose: the points lie on their patches. Turned by 5 degrees: many do not.
+  const PoseProbe at = ProbePoseAssociated(associated, PoseAt(0), LidarOnlyOptions(),
+                                           IekfOptions(), 1.0);
+  Eigen::Isometry3d turned = PoseAt(0);
+  turned.linear() = Eigen::AngleAxisd(5.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()) *
+                    turned.linear();
+  const PoseProbe off =
+      ProbePoseAssociated(associated, turned, LidarOnlyOptions(), IekfOptions(), 1.0);
+  EXPECT_GT(at.score.fit, 0.95);
+  // Below what the check calls a poor fit against recent scans that fit as this one does.
+  EXPECT_LT(off.score.fit, ConsistencyOptions().fit_ratio * at.score.fit);
+  EXPECT_EQ(off.score.covered, at.score.covered);
 }
 
 }  // namespace

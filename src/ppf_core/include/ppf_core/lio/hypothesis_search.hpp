@@ -12,6 +12,7 @@
 // well: the others cost time only where the model failed.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -86,10 +87,12 @@ PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lid
 // ProbePose from associations already made (KnnResidualProvider::Associations: the IEKF's last
 // kNN search of the scan), without searching the map again: each point with whether it met the
 // map (k neighbours) and the plane they fitted. The score counts these points, not a sample.
+// Only the first step_points of them give the step's rows (all by default); the score counts
+// every one.
 PoseProbe ProbePoseAssociated(const std::vector<AssociatedPoint>& points,
                               const Eigen::Isometry3d& T_world_lidar,
                               const LidarOnlyOptions& options, const IekfOptions& iekf,
-                              double wide_gate);
+                              double wide_gate, size_t step_points = SIZE_MAX);
 
 // ProbePose with the velocity the scan was taken at: dt holds each frame point's time from the
 // scan end (seconds, <= 0), and a world velocity v moves the point by v * dt. The de-skew's

@@ -24,6 +24,7 @@
 namespace ppf {
 
 class SkeletonWindow;
+struct AssociatedPoint;  // knn_residual.hpp
 struct PrefitResult;
 
 // A skeleton point's last patch lookup within a scan (SkeletonResidualProvider::SetKeepDistance).
@@ -97,6 +98,13 @@ class SkeletonResidualProvider : public ResidualProvider {
 
   // Matches of the last ComputeRows call (diagnostics and tests).
   const std::vector<SkeletonMatch>& last_matches() const { return matches_; }
+  // Appends one AssociatedPoint per skeleton point of the last ComputeRows call (the update's
+  // last iteration): covered, with the patch's plane, where a patch of its own surface was found,
+  // however far the point lies from it (the gate eps is not applied). The consistency check
+  // scores the scan's posterior on these with the kNN rows' own associations, so that in kPpf its
+  // fit is of the whole scan and not of the scattered points alone. False (nothing appended)
+  // without a patch map or without a ComputeRows call since BeginScan.
+  bool AppendAssociations(std::vector<AssociatedPoint>* out) const;
 
  private:
   void KeepRowsPerPlane();
@@ -108,6 +116,8 @@ class SkeletonResidualProvider : public ResidualProvider {
   std::vector<int> skeleton_indices_;
   std::vector<SkeletonMatch> matches_;
   std::vector<PatchLookup> lookups_;  // per skeleton_indices_ entry, this scan
+  // Per skeleton_indices_ entry: the patch of the last ComputeRows call (nullptr: none).
+  std::vector<const PlanePatchMap::Patch*> found_;
   double keep_distance_ = 0.0;
   const PrefitResult* prefit_ = nullptr;
   double normal_gate_deg_ = 0.0;

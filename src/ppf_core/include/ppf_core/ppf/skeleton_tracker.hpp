@@ -39,6 +39,7 @@ class SkeletonTracker {
 
   // The skeleton residual provider reading this tracker's window (the IEKF's second source).
   std::shared_ptr<ResidualProvider> residual_provider() const { return provider_; }
+  const SkeletonResidualProvider& skeleton_provider() const { return *provider_; }
   // SkeletonResidualProvider::SetKeepDistance for the scans from now on.
   void SetKeepDistance(double metres) { provider_->SetKeepDistance(metres); }
 

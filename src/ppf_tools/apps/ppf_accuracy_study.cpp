@@ -8,9 +8,9 @@
 //   ppf_accuracy_study                       # 60 s: urban and indoor x 5 LiDARs, park HDL-32
 //   ppf_accuracy_study --modes knn,ppf       # both modes
 //   ppf_accuracy_study --short --sequences indoor:vlp16
-//   ppf_accuracy_study --duration 12 --sequences urban:vlp16 --seeds 1-8 --modes knn,ppf \
-//       --disturb "--silence 6:3" --disturb-at 9   # a disturbance on eight drives, each against
-//                                                 # the same drive undisturbed
+//   # a disturbance on eight drives, each against the same drive undisturbed:
+//   ppf_accuracy_study --duration 12 --sequences urban:vlp16 --seeds 1-8 --modes knn,ppf
+//       --disturb "--silence 6:3" --disturb-at 9
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>

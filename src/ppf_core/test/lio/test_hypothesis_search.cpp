@@ -195,24 +195,44 @@ TEST(ProbePose, PointsTheKnnMapLacksMeetTheSkeletonPatches) {
   EXPECT_EQ(SampleFrame(f.frame, 100).patches, &patches);
 }
 
+// The room seen from `truth`, its kNN rows computed once at a pose `off` it: the associations the
+// IEKF's last iteration leaves for the consistency check.
+struct AssociatedRoom {
+  AssociatedRoom() : provider(Knn()) {
+    f.Build(truth);
+    provider.BeginScan(f.frame);
+    had_associations_before_rows = provider.Associations(&associated);
+    std::vector<PointPlaneRow> rows;
+    provider.ComputeRows(off, &rows);
+    has_associations = provider.Associations(&associated);
+  }
+  static KnnOptions Knn() {
+    KnnOptions knn;
+    knn.max_residual = 1.0;
+    return knn;
+  }
+  RoomFixture f;
+  const Eigen::Isometry3d truth = Pose(Eigen::Vector3d(0.4, 0.1, 0.05), Eigen::Vector3d(0, 0, 0.1));
+  const Eigen::Isometry3d off =
+      Pose(Eigen::Vector3d(0.45, 0.05, 0.08), Eigen::Vector3d(0.005, 0.0, 0.12));
+  KnnResidualProvider provider;
+  std::vector<AssociatedPoint> associated;
+  bool had_associations_before_rows = false;
+  bool has_associations = false;
+};
+
 // The consistency check's probe from the IEKF's own kNN search (KnnResidualProvider::Associations)
 // says what a fresh search at the same pose says: the same points met the map, the same fit, the
 // same step; before a search since BeginScan there is nothing to reuse.
 TEST(ProbePoseAssociated, SaysWhatAFreshSearchAtThatPoseSays) {
-  RoomFixture f;
-  const Eigen::Isometry3d truth = Pose(Eigen::Vector3d(0.4, 0.1, 0.05), Eigen::Vector3d(0, 0, 0.1));
-  f.Build(truth);
-  const Eigen::Isometry3d off =
-      Pose(Eigen::Vector3d(0.45, 0.05, 0.08), Eigen::Vector3d(0.005, 0.0, 0.12));
-  KnnOptions knn;
-  knn.max_residual = 1.0;
-  KnnResidualProvider provider(knn);
-  provider.BeginScan(f.frame);
-  std::vector<AssociatedPoint> associated;
-  EXPECT_FALSE(provider.Associations(&associated));
-  std::vector<PointPlaneRow> rows;
-  provider.ComputeRows(off, &rows);
-  ASSERT_TRUE(provider.Associations(&associated));
+  AssociatedRoom room;
+  const RoomFixture& f = room.f;
+  const Eigen::Isometry3d& truth = room.truth;
+  const Eigen::Isometry3d& off = room.off;
+  const KnnOptions knn = AssociatedRoom::Knn();
+  const std::vector<AssociatedPoint>& associated = room.associated;
+  EXPECT_FALSE(room.had_associations_before_rows);
+  ASSERT_TRUE(room.has_associations);
   ASSERT_EQ(associated.size(), f.frame.points_lidar.size());
 
   const PoseProbe reused =
@@ -232,19 +252,10 @@ TEST(ProbePoseAssociated, SaysWhatAFreshSearchAtThatPoseSays) {
 // kPpf's check scores the kNN associations and the skeleton points' patches together, but takes
 // the step from the kNN rows alone (step_points): the points beyond it count in the fit only.
 TEST(ProbePoseAssociated, PointsBeyondStepPointsCountInTheFitOnly) {
-  RoomFixture f;
-  const Eigen::Isometry3d truth = Pose(Eigen::Vector3d(0.4, 0.1, 0.05), Eigen::Vector3d(0, 0, 0.1));
-  f.Build(truth);
-  const Eigen::Isometry3d off =
-      Pose(Eigen::Vector3d(0.45, 0.05, 0.08), Eigen::Vector3d(0.005, 0.0, 0.12));
-  KnnOptions knn;
-  knn.max_residual = 1.0;
-  KnnResidualProvider provider(knn);
-  provider.BeginScan(f.frame);
-  std::vector<PointPlaneRow> rows;
-  provider.ComputeRows(off, &rows);
-  std::vector<AssociatedPoint> associated;
-  ASSERT_TRUE(provider.Associations(&associated));
+  AssociatedRoom room;
+  const Eigen::Isometry3d& off = room.off;
+  const std::vector<AssociatedPoint>& associated = room.associated;
+  ASSERT_TRUE(room.has_associations);
   const size_t half = associated.size() / 2;
   std::vector<AssociatedPoint> first(associated.begin(), associated.begin() + half);
 

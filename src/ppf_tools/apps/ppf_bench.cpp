@@ -12,9 +12,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -79,6 +82,10 @@ ChildResult RunChild(const std::vector<std::string>& args, const std::string& lo
     if (std::freopen(log.c_str(), "w", stdout) == nullptr) std::_Exit(126);
     ::dup2(STDOUT_FILENO, STDERR_FILENO);
     ::execvp(argv[0], argv.data());
+    // Said in the log the caller names: a tool not on PATH (an unsourced workspace) is the
+    // usual cause, and an empty log would say nothing.
+    std::fprintf(stderr, "ppf_bench: cannot run %s: %s\n", argv[0], std::strerror(errno));
+    std::fflush(stderr);
     std::_Exit(127);
   }
   int status = 0;
@@ -702,9 +709,10 @@ int main(int argc, char** argv) {
     if (peers.empty()) continue;
     const std::string sqlite_bag = EnsureSqliteSequence(seq, bag, opts.duration);
     if (sqlite_bag.empty()) {
+      const std::string sim_log = bag + "_sqlite3.sim.log";
       peer_notes.push_back("ppf_bench: peers on " + seq.Name() +
-                           ": not run (ppf_sim --storage sqlite3 failed, see " + bag +
-                           "_sqlite3.sim.log)");
+                           ": not run (ppf_sim --storage sqlite3 failed: " +
+                           ppf::tools::LastLogLine(sim_log) + "; see " + sim_log + ")");
       continue;
     }
     std::vector<std::string> extrinsic;

@@ -222,6 +222,15 @@ bool CompleteSequence(const fs::path& dir) {
 }
 }  // namespace
 
+std::string LastLogLine(const std::string& path) {
+  std::ifstream file(path);
+  std::string line, last;
+  while (std::getline(file, line)) {
+    if (!line.empty()) last = line;
+  }
+  return last;
+}
+
 bool GenerateSequenceOnce(const std::string& dir_name,
                           const std::function<bool(const std::string& out)>& generate) {
   const fs::path dir(dir_name);
@@ -273,13 +282,8 @@ std::string EnsureSequence(const SequenceSpec& seq, double duration, const std::
   });
   if (!ok) {
     // The log's last line usually says why ("ppf_sim: not found" when it is not on PATH).
-    std::ifstream sim_log_file(sim_log);
-    std::string line, last;
-    while (std::getline(sim_log_file, line)) {
-      if (!line.empty()) last = line;
-    }
-    throw std::runtime_error("ppf_sim failed for " + name.str() + ": " + last + " (see " + sim_log +
-                             ")");
+    throw std::runtime_error("ppf_sim failed for " + name.str() + ": " + LastLogLine(sim_log) +
+                             " (see " + sim_log + ")");
   }
   return dir.string();
 }

@@ -75,6 +75,9 @@ bool ParseStudyCommandLine(int argc, char** argv, StudyOptions* opts, bool* help
 // Help text lines for the options above (with the command's default sequence list).
 std::string StudyOptionsHelp(const std::string& default_sequences);
 
+// The last non-empty line of a log file ("" if none): why a child process failed, usually.
+std::string LastLogLine(const std::string& path);
+
 // Makes `dir` hold a complete simulated sequence (metadata.yaml and groundtruth.tum present),
 // calling generate(out) only if it does not yet. generate writes into `out`, a private directory
 // with dir's name, which then takes dir's place in one rename: processes sharing a work directory

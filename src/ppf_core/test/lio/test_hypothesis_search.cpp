@@ -259,7 +259,8 @@ TEST(ProbePoseAssociated, PointsBeyondStepPointsCountInTheFitOnly) {
   const size_t half = associated.size() / 2;
   std::vector<AssociatedPoint> first(associated.begin(), associated.begin() + half);
 
-  const PoseProbe all = ProbePoseAssociated(associated, off, LidarOnlyOptions(), IekfOptions(), 1.0);
+  const PoseProbe all =
+      ProbePoseAssociated(associated, off, LidarOnlyOptions(), IekfOptions(), 1.0);
   const PoseProbe split =
       ProbePoseAssociated(associated, off, LidarOnlyOptions(), IekfOptions(), 1.0, half);
   const PoseProbe alone = ProbePoseAssociated(first, off, LidarOnlyOptions(), IekfOptions(), 1.0);

@@ -125,13 +125,13 @@ TEST(PpfTracker, SkeletonAssociationsScoreAPoseOnThePatches) {
   const size_t covered = static_cast<size_t>(std::count_if(
       associated.begin(), associated.end(), [](const AssociatedPoint& a) { return a.covered; }));
   EXPECT_GT(covered, 9 * skeleton / 10);
-  EXPECT_GE(covered, rows.size());   // a row is a covered point within the gate
+  EXPECT_GE(covered, rows.size());  // a row is a covered point within the gate
   // At the pose: the points lie on their patches. Turned by 5 degrees: many do not.
-  const PoseProbe at = ProbePoseAssociated(associated, PoseAt(0), LidarOnlyOptions(),
-                                           IekfOptions(), 1.0);
+  const PoseProbe at =
+      ProbePoseAssociated(associated, PoseAt(0), LidarOnlyOptions(), IekfOptions(), 1.0);
   Eigen::Isometry3d turned = PoseAt(0);
-  turned.linear() = Eigen::AngleAxisd(5.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()) *
-                    turned.linear();
+  turned.linear() =
+      Eigen::AngleAxisd(5.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()) * turned.linear();
   const PoseProbe off =
       ProbePoseAssociated(associated, turned, LidarOnlyOptions(), IekfOptions(), 1.0);
   EXPECT_GT(at.score.fit, 0.95);

@@ -445,9 +445,10 @@ bool ReadExtrinsic(const std::string& calibration, std::vector<std::string>* out
 }
 
 // The same sequence (same ppf_sim options and seed, so the same data) in a rosbag2 sqlite3
-// container, which is what the runners read; generated once next to the MCAP one.
+// container, which is what the runners read; generated once next to the MCAP one. "" if ppf_sim
+// failed, and *why says how (its log's last line) and where its log is.
 std::string EnsureSqliteSequence(const ppf::tools::SequenceSpec& seq, const std::string& mcap_bag,
-                                 double duration) {
+                                 double duration, std::string* why) {
   const std::string dir = mcap_bag + "_sqlite3";
   const std::string sim_log = dir + ".sim.log";
   std::cerr << "ppf_bench: " << seq.Name() << ": sqlite3 copy for the peers...\n";
@@ -463,7 +464,9 @@ std::string EnsureSqliteSequence(const ppf::tools::SequenceSpec& seq, const std:
     args.push_back(out);
     return RunChild(args, sim_log).exit_code == 0;
   });
-  return ok ? dir : std::string();
+  if (ok) return dir;
+  *why = ppf::tools::LastLogLine(sim_log) + "; see " + sim_log;
+  return std::string();
 }
 
 struct PeerRow {
@@ -707,12 +710,11 @@ int main(int argc, char** argv) {
     }
 
     if (peers.empty()) continue;
-    const std::string sqlite_bag = EnsureSqliteSequence(seq, bag, opts.duration);
+    std::string why;
+    const std::string sqlite_bag = EnsureSqliteSequence(seq, bag, opts.duration, &why);
     if (sqlite_bag.empty()) {
-      const std::string sim_log = bag + "_sqlite3.sim.log";
       peer_notes.push_back("ppf_bench: peers on " + seq.Name() +
-                           ": not run (ppf_sim --storage sqlite3 failed: " +
-                           ppf::tools::LastLogLine(sim_log) + "; see " + sim_log + ")");
+                           ": not run (ppf_sim --storage sqlite3 failed: " + why + ")");
       continue;
     }
     std::vector<std::string> extrinsic;

@@ -867,8 +867,14 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const
   h.push_back({"prediction", predicted.T_world_imu() * T_il});
   const Eigen::Vector3d up = -state.gravity_world.normalized();
   const double a = co.turn_deg * M_PI / 180.0;
+  // The turns are for a heading the IMU got wrong by degrees, and that shows in the fit. A scan
+  // that fits as well as the recent ones and only steps too far is off in position (or by the
+  // fraction of a degree its own step holds, the "scan step" guess): four turned alignments
+  // cannot win there and cost more than the rest of the scan. Where the IMU did not measure the
+  // whole interval (a bridged gap, a saturated gyro) they stay, whatever the trigger.
+  const bool turns = poor_fit || r->imu_gap_s > 0.0 || r->gyro_saturated_s > 0.0;
   for (double k : {1.0, -1.0, 2.0, -2.0}) {
-    if (!(a > 0.0)) break;
+    if (!(a > 0.0) || !turns) break;
     std::ostringstream os;
     os << "turn " << (k > 0 ? "+" : "") << k * co.turn_deg << " deg";
     h.push_back({os.str(), about_sensor(up * (k * a), Eigen::Vector3d::Zero())});

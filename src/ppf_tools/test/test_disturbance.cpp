@@ -53,6 +53,9 @@ struct Outcome {
   double ape = 0.0;  // SE(3)-aligned RMSE, m
   size_t overruled = 0;
   size_t relocalized = 0;
+  // Searches set off by the scan-alone step while the fit stayed good, over an interval the IMU
+  // measured whole: they try the update, the scan's own step and the prediction, no turns.
+  size_t step_searches = 0;
 };
 
 Outcome RunCase(const std::string& bag, const Case& c) {
@@ -68,6 +71,11 @@ Outcome RunCase(const std::string& bag, const Case& c) {
   for (const auto& r : run.results) {
     o.overruled += r.overruled;
     o.relocalized += r.relocalized;
+    const bool step_search = r.reason.find("(the scan alone moves it") != std::string::npos;
+    if (step_search && r.imu_gap_s == 0.0 && r.gyro_saturated_s == 0.0) {
+      ++o.step_searches;
+      EXPECT_EQ(r.guesses_tried, 3) << "at " << r.stamp_s << ": " << r.reason;
+    }
     EXPECT_NE(r.status, ppf::Status::kReset) << "a reset at " << r.stamp_s << ": " << r.reason;
   }
   ppf::EvalOptions eval;
@@ -99,7 +107,8 @@ TEST_P(Disturbance, CorrectedWithinOneSecond) {
             << r.max_position_m << "; undisturbed " << r0.max_position_m << "), APE " << o.ape
             << " m (undisturbed " << clean.ape << "), tilt max " << r.max_tilt_deg
             << " deg (undisturbed " << r0.max_tilt_deg << "), overruled " << o.overruled
-            << " scans, re-localized " << o.relocalized << "\n";
+            << " scans, re-localized " << o.relocalized << ", step-only searches "
+            << o.step_searches << " (undisturbed " << clean.step_searches << ")\n";
   // Only a gap longer than the IMU bridges makes the first scan after it a re-localization.
   if (c.disturbance.find("--silence") != std::string::npos) {
     EXPECT_EQ(o.relocalized, 1u);

@@ -873,11 +873,12 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const
   // cannot win there and cost more than the rest of the scan. Where the IMU did not measure the
   // whole interval (a bridged gap, a saturated gyro) they stay, whatever the trigger.
   const bool turns = poor_fit || r->imu_gap_s > 0.0 || r->gyro_saturated_s > 0.0;
-  for (double k : {1.0, -1.0, 2.0, -2.0}) {
-    if (!(a > 0.0) || !turns) break;
-    std::ostringstream os;
-    os << "turn " << (k > 0 ? "+" : "") << k * co.turn_deg << " deg";
-    h.push_back({os.str(), about_sensor(up * (k * a), Eigen::Vector3d::Zero())});
+  if (turns && a > 0.0) {
+    for (double k : {1.0, -1.0, 2.0, -2.0}) {
+      std::ostringstream os;
+      os << "turn " << (k > 0 ? "+" : "") << k * co.turn_deg << " deg";
+      h.push_back({os.str(), about_sensor(up * (k * a), Eigen::Vector3d::Zero())});
+    }
   }
   // After a bridged gap the IMU's integration across it may be off along the way by metres.
   if (r->imu_gap_s > 0.0) AddAlongTrackGuesses(T_post, state.v_world, r->imu_gap_s, &h);

@@ -25,6 +25,18 @@ const char* StatusName(Status status) {
   return "?";
 }
 
+const char* ConsistencySearchName(ConsistencySearch search) {
+  switch (search) {
+    case ConsistencySearch::kNone:
+      return "none";
+    case ConsistencySearch::kPoorFit:
+      return "fit";
+    case ConsistencySearch::kScanStep:
+      return "step";
+  }
+  return "?";
+}
+
 LioPpf::Impl::Impl(const Config& c) : config(c), map(c.map) {
   for (const std::string& note : ValidateConfig(&config)) Log(LogLevel::kWarn, "config: " + note);
   if (config.num_threads > 0) {

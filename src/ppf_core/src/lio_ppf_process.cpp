@@ -849,6 +849,7 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const
     return rep;
   }
 
+  r->consistency_search = poor_fit ? ConsistencySearch::kPoorFit : ConsistencySearch::kScanStep;
   // The guesses are compared on a sample of the whole scan, searched at each pose.
   const PoseProbe sampled = associated_probe ? probe_at(state) : probe;
 

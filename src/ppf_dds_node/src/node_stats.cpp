@@ -85,6 +85,7 @@ void NodeStats::CountResult(const ScanResult& r) {
   summary_.points_nonfinite += r.dropped_nan;
   summary_.points_bad_time += r.points_bad_time;
   summary_.lidar_overruled += r.overruled;
+  summary_.consistency_searches += r.consistency_search != ConsistencySearch::kNone;
   summary_.relocalized += r.relocalized;
   CountImuInput(r);
   if (r.imu_gap_s > 0.0) {
@@ -238,7 +239,8 @@ std::string NodeStats::FormatSummary(const NodeSummary& s) {
     << " imu_conflicts_unresolved=" << s.imu_conflicts_unresolved << " imu_gaps=" << s.imu_gaps
     << " imu_gap_warn_max_s=" << s.imu_gap_warn_max_s
     << " imu_clock_offset_dropped=" << s.imu_clock_offset_dropped
-    << " lidar_overruled=" << s.lidar_overruled << " relocalized=" << s.relocalized
+    << " lidar_overruled=" << s.lidar_overruled
+    << " consistency_searches=" << s.consistency_searches << " relocalized=" << s.relocalized
     << " latency_p50_ms=" << s.latency_p50_ms << " latency_p99_ms=" << s.latency_p99_ms
     << " latency_max_ms=" << s.latency_max_ms << " core_p50_ms=" << s.core_p50_ms
     << " core_p99_ms=" << s.core_p99_ms << " overhead_p50_ms=" << s.overhead_p50_ms

@@ -76,6 +76,26 @@ TEST(NodeStats, LidarOnlyScansAndALateImuAreCountedAndShownInTheStatusLine) {
             std::string::npos);
 }
 
+// The consistency check's searches are counted whether a guess won or the pose was kept; the
+// overruled ones are counted apart.
+TEST(NodeStats, ConsistencySearchesAreCountedBesideTheOverruledScans) {
+  NodeStats stats;
+  ScanResult r;
+  r.status = Status::kOk;
+  r.pose_valid = true;
+  stats.CountResult(r);
+  r.consistency_search = ConsistencySearch::kScanStep;
+  stats.CountResult(r);
+  r.consistency_search = ConsistencySearch::kPoorFit;
+  r.overruled = true;
+  stats.CountResult(r);
+  const NodeSummary s = stats.Snapshot();
+  EXPECT_EQ(s.consistency_searches, 2u);
+  EXPECT_EQ(s.lidar_overruled, 1u);
+  EXPECT_NE(NodeStats::FormatSummary(s).find(" lidar_overruled=1 consistency_searches=2 "),
+            std::string::npos);
+}
+
 // Scans arriving for more than a second without one processed (a stuck core, or every scan
 // refused): the status line says stalled with the seconds instead of the core's last "ok", the
 // episode is counted once with what the scans became, and it ends with the next result. Before

@@ -30,7 +30,7 @@ void WriteStatsCsvHeader(std::ostream& os) {
         "skeleton_patches,gyro_bias_x,gyro_bias_y,gyro_bias_z,acc_bias_x,acc_bias_y,acc_bias_z,"
         "gravity_map_x,gravity_map_y,gravity_map_z,skeleton_planes,fit,motion_guess,"
         "guesses_tried,t_guesses_ms,correction_rot_deg,correction_pos_m,overruled,"
-        "disagreement_rot_deg,disagreement_pos_m,gyro_saturated_s\n";
+        "disagreement_rot_deg,disagreement_pos_m,gyro_saturated_s,consistency_search\n";
 }
 
 void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
@@ -58,6 +58,8 @@ void WriteStatsCsvRow(std::ostream& os, const ScanResult& r) {
      << (r.overruled ? 1 : 0) << ',' << r.disagreement_rot_deg << ',' << r.disagreement_pos_m;
   // How long a gyro axis read at saturation in this scan's prediction (imu.noise.gyro_range).
   os << ',' << r.gyro_saturated_s;
+  // What set the consistency check's search off, if one ran (none, fit, step).
+  os << ',' << ConsistencySearchName(r.consistency_search);
   os << '\n';
 }
 
@@ -102,6 +104,8 @@ RunSummary Summarize(const std::vector<ScanResult>& results, double wall_s) {
     core_ms += r.timings.total;
     s.imu_lost += r.imu_lost;
     s.overruled += r.overruled;
+    s.searched_fit += r.consistency_search == ConsistencySearch::kPoorFit;
+    s.searched_step += r.consistency_search == ConsistencySearch::kScanStep;
     if (!r.pose_valid) continue;
     ++n;
     const auto& t = r.timings;
@@ -149,8 +153,12 @@ void PrintSummary(std::ostream& os, const RunSummary& s, const std::string& titl
   if (s.imu_lost > 0) {
     os << "  IMU lost: " << s.imu_lost << " scans registered LiDAR-only (fallback)\n";
   }
-  if (s.overruled > 0) {
-    os << "  LiDAR overruled the IMU prediction on " << s.overruled << " scans\n";
+  if (s.searched_fit + s.searched_step > 0) {
+    // Every search, whether a guess won (overruled) or the pose was kept: a search costs several
+    // scans' worth of core time, and one the map never confirms says the check fires on noise.
+    os << "  consistency searches: " << s.searched_fit + s.searched_step << " (poor fit "
+       << s.searched_fit << ", scan step " << s.searched_step << "), LiDAR overruled the IMU "
+       << "prediction on " << s.overruled << " scans\n";
   }
 }
 

@@ -71,7 +71,20 @@ Outcome RunCase(const std::string& bag, const Case& c) {
   for (const auto& r : run.results) {
     o.overruled += r.overruled;
     o.relocalized += r.relocalized;
-    const bool step_search = r.reason.find("(the scan alone moves it") != std::string::npos;
+    // The result says what set a search off, as the reason does; only a search overrules, and
+    // a LiDAR-inertial scan that was not searched aligned no guesses.
+    const bool step_search = r.consistency_search == ppf::ConsistencySearch::kScanStep;
+    EXPECT_EQ(step_search, r.reason.find("(the scan alone moves it") != std::string::npos)
+        << "at " << r.stamp_s << ": " << r.reason;
+    EXPECT_EQ(r.consistency_search == ppf::ConsistencySearch::kPoorFit,
+              r.reason.find("contradicts the prediction (fit ") != std::string::npos)
+        << "at " << r.stamp_s << ": " << r.reason;
+    EXPECT_TRUE(!r.overruled || r.consistency_search != ppf::ConsistencySearch::kNone)
+        << "overruled without a search at " << r.stamp_s << ": " << r.reason;
+    const bool lio_update = r.pose_valid && !r.lidar_only && !r.imu_lost && !r.relocalized;
+    if (lio_update && r.consistency_search == ppf::ConsistencySearch::kNone) {
+      EXPECT_EQ(r.guesses_tried, 0) << "at " << r.stamp_s << ": " << r.reason;
+    }
     if (step_search && r.imu_gap_s == 0.0 && r.gyro_saturated_s == 0.0) {
       ++o.step_searches;
       EXPECT_EQ(r.guesses_tried, 3) << "at " << r.stamp_s << ": " << r.reason;

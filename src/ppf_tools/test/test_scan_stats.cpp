@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "ppf_tools/scan_stats.hpp"
 
@@ -60,6 +62,35 @@ TEST(ScanStats, CsvQuotesReasonsAndHasOneColumnPerHeaderField) {
   };
   EXPECT_EQ(count_fields(header), count_fields(row));
   EXPECT_NE(row.find("\"\"loop\"\""), std::string::npos) << row;
+}
+
+// What set the consistency check's search off: the CSV's last column per scan, and the summary's
+// counts by trigger next to the overruled ones (a search that kept the pose is counted too).
+TEST(ScanStats, ConsistencySearchesInTheCsvAndTheSummary) {
+  std::vector<ScanResult> rs(4, Result(Status::kOk, 10.0, 100));
+  rs[1].consistency_search = ConsistencySearch::kPoorFit;
+  rs[1].overruled = true;
+  rs[2].consistency_search = ConsistencySearch::kScanStep;
+  rs[3].consistency_search = ConsistencySearch::kScanStep;
+  std::ostringstream csv;
+  WriteStatsCsvHeader(csv);
+  for (const auto& r : rs) WriteStatsCsvRow(csv, r);
+  std::istringstream is(csv.str());
+  std::vector<std::string> last;
+  for (std::string line; std::getline(is, line);) last.push_back(line.substr(line.rfind(',') + 1));
+  EXPECT_EQ(last, (std::vector<std::string>{"consistency_search", "none", "fit", "step", "step"}));
+  const RunSummary s = Summarize(rs, 1.0);
+  EXPECT_EQ(s.searched_fit, 1u);
+  EXPECT_EQ(s.searched_step, 2u);
+  std::ostringstream printed;
+  PrintSummary(printed, s, "run");
+  EXPECT_NE(printed.str().find("consistency searches: 3 (poor fit 1, scan step 2), LiDAR overruled "
+                               "the IMU prediction on 1 scans"),
+            std::string::npos)
+      << printed.str();
+  std::ostringstream quiet;
+  PrintSummary(quiet, Summarize({Result(Status::kOk, 10.0, 100)}, 1.0), "run");
+  EXPECT_EQ(quiet.str().find("consistency"), std::string::npos) << quiet.str();
 }
 
 }  // namespace

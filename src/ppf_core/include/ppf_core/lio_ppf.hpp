@@ -78,6 +78,16 @@ enum class Status {
 };
 const char* StatusName(Status status);
 
+// What set off a scan's search of guesses around its posterior (Config::consistency): nothing
+// (no search ran), a fit far below the recent scans', or the scan alone still moving the posterior
+// too far while it fit as well as they did.
+enum class ConsistencySearch {
+  kNone,
+  kPoorFit,   // fit < consistency.fit_ratio x the recent scans' median
+  kScanStep,  // fit good; the scan alone moves it > consistency.max_step_pos and > 3x usual
+};
+const char* ConsistencySearchName(ConsistencySearch search);  // "none", "fit", "step"
+
 // Milliseconds. preprocess = decoding the cloud (layout, per-point time); downsample = stride and
 // range filter + voxel grid on the raw points; deskew = IMU propagation + de-skew of the
 // downsampled points (preprocess.hpp explains the order). guesses = LiDAR-only coarse alignment
@@ -194,6 +204,10 @@ struct ScanResult {
   // and a pose found from guesses around it fit clearly better: the prediction was re-anchored
   // there and the update ran again (Config::consistency). The reason and one WARN say how far.
   bool overruled = false;
+  // With consistency.check: what set this scan's search off (kNone: the scan passed the check and
+  // nothing was searched). Every overruled scan had one; a search that found nothing better kept
+  // the pose and says so in the reason ("pose kept").
+  ConsistencySearch consistency_search = ConsistencySearch::kNone;
   // With consistency.check: how far the scan alone (wide gate, no prior; ProbePose) would still
   // move the posterior; large values with overruled false say the map and the IMU disagree.
   double disagreement_rot_deg = 0.0;

@@ -38,6 +38,9 @@ struct NodeSummary {
   // Scans whose IMU prediction the map contradicted and the LiDAR moved (ScanResult::overruled:
   // a jolt, a saturated gyro, a gap the IMU bridged wrongly); each also logs one WARN.
   uint64_t lidar_overruled = 0;
+  // Scans the core's consistency check searched again from guesses (ScanResult::
+  // consistency_search): the overruled ones and those whose pose the search kept.
+  uint64_t consistency_searches = 0;
   // Scans re-localized on the map after a gap longer than the IMU bridges (ScanResult::
   // relocalized: both streams silent while moving); each also logs one WARN.
   uint64_t relocalized = 0;

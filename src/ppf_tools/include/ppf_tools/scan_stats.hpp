@@ -27,6 +27,8 @@ struct RunSummary {
   double mean_knn_residuals = 0.0, mean_skeleton_residuals = 0.0;
   size_t imu_lost = 0;  // scans registered LiDAR-only because the IMU stream was lost
   size_t overruled = 0;  // scans whose IMU prediction the map contradicted and the LiDAR moved
+  // Scans the consistency check searched (ScanResult::consistency_search), by what set it off.
+  size_t searched_fit = 0, searched_step = 0;
 };
 RunSummary Summarize(const std::vector<ScanResult>& results, double wall_s);
 void PrintSummary(std::ostream& os, const RunSummary& s, const std::string& title);

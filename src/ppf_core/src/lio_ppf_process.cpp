@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <iomanip>
 #include <sstream>
 #include <thread>
 #include <vector>
@@ -844,7 +845,11 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const
   }
   const double baseline = lio_baseline.MedianFit(kind);
   const bool poor_fit = fit < co.fit_ratio * baseline;
-  if (!poor_fit && !too_far(probe)) {
+  // A step only its few or scattered rows make (in kPpf the scattered points alone, a hundred
+  // on a hand-held walk) is no evidence: it must also stand out from its own scatter.
+  const bool step_off =
+      too_far(probe) && (co.min_step_sigmas <= 0.0 || probe.step_pos_sigmas > co.min_step_sigmas);
+  if (!poor_fit && !step_off) {
     remember(kind, fit, probe);
     return rep;
   }
@@ -894,7 +899,8 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const
   if (poor_fit) {
     why << "fit " << fit << " < " << co.fit_ratio << " x recent " << baseline;
   } else {
-    why << "the scan alone moves it " << r->disagreement_pos_m << " m";
+    why << "the scan alone moves it " << r->disagreement_pos_m << " m, "
+        << std::setprecision(0) << probe.step_pos_sigmas << " sigma" << std::setprecision(2);
   }
   why << ")";
 

@@ -122,6 +122,10 @@ struct ConsistencyOptions {
   // no prior) would still move the posterior's position farther than this. The narrow gates hide
   // a step along the way from the fit: most points lie on surfaces parallel to it.
   double max_step_pos = 0.1;  // m
+  // ... and by more than this many standard deviations of the step itself, its rows counted as
+  // independent (which they are not: they share the map's and the de-skew's errors, so a step
+  // of a few noisy rows reaches several of these on undisturbed scans).
+  double min_step_sigmas = 15.0;
   // A re-anchored posterior is taken when it fits at least this much better (share of the sample
   // points), or no worse while the scan alone no longer moves it past the bounds above.
   double min_gain = 0.1;

@@ -84,7 +84,9 @@ const char* StatusName(Status status);
 enum class ConsistencySearch {
   kNone,
   kPoorFit,   // fit < consistency.fit_ratio x the recent scans' median
-  kScanStep,  // fit good; the scan alone moves it > consistency.max_step_pos and > 3x usual
+  // fit good; the scan alone moves it > consistency.max_step_pos, > 3x usual and by more than
+  // consistency.min_step_sigmas of its own standard deviation
+  kScanStep,
 };
 const char* ConsistencySearchName(ConsistencySearch search);  // "none", "fit", "step"
 

@@ -56,7 +56,7 @@ namespace {
 // The score and the step from the accumulated rows (n: the points probed, of which `covered`
 // met the map and `inliers` lie within the fit gate).
 template <int N>
-void FinishProbe(long n, long covered, long inliers, long rows, double dt2,
+void FinishProbe(long n, long covered, long inliers, long rows, double dt2, double rr,
                  const Eigen::Matrix<double, N, N>& JtJ, const Eigen::Matrix<double, N, 1>& Jtr,
                  const IekfOptions& iekf, PoseProbe* out) {
   using MatN = Eigen::Matrix<double, N, N>;
@@ -98,6 +98,19 @@ void FinishProbe(long n, long covered, long inliers, long rows, double dt2,
     probe.step_pos = step.template segment<3>(3);
     if constexpr (N == 9) probe.step_vel = step.template tail<3>();
   }
+  // The position step against its own scatter: the rows' squared residuals left after the
+  // (linearised) step, per degree of freedom, times the inverse information along the pinned
+  // directions. A step of a few rows that disagree among themselves is noise of that size.
+  if (step.allFinite() && rows > N) {
+    const double left = rr + 2.0 * step.dot(Jtr) + step.dot(JtJ * step);
+    const double s2 = std::max(left, 0.0) / static_cast<double>(rows - N);
+    const MatN cov = s2 * A.inverse();
+    const Eigen::Vector3d dp = probe.step_pos;
+    const Eigen::Matrix3d cov_pp =
+        cov.template block<3, 3>(3, 3) + 1e-12 * Eigen::Matrix3d::Identity();
+    const double z2 = dp.dot(cov_pp.ldlt().solve(dp));
+    if (std::isfinite(z2)) probe.step_pos_sigmas = std::sqrt(std::max(z2, 0.0));
+  }
 }
 
 // The rows of ProbePose, and with point times (dt: seconds from the scan end, per frame point)
@@ -115,13 +128,13 @@ PoseProbe Probe(const ScanFrame& frame, const std::vector<float>* dt,
   const long n = static_cast<long>(frame.points_lidar.size());
   const Eigen::Vector3d c = T_world_lidar.translation();
   long covered = 0, inliers = 0, rows = 0;
-  double dt2 = 0.0;
+  double dt2 = 0.0, rr = 0.0;
   MatN JtJ = MatN::Zero();
   VecN Jtr = VecN::Zero();
 #ifdef _OPENMP
   const int threads = knn.num_threads > 0 ? knn.num_threads : omp_get_max_threads();
 #endif
-#pragma omp parallel num_threads(threads) reduction(+ : covered, inliers, rows, dt2)
+#pragma omp parallel num_threads(threads) reduction(+ : covered, inliers, rows, dt2, rr)
   {
     std::vector<Eigen::Vector3f> nn;
     MatN JtJ_t = MatN::Zero();
@@ -158,6 +171,7 @@ PoseProbe Probe(const ScanFrame& frame, const std::vector<float>* dt,
       }
       JtJ_t.noalias() += j * j.transpose();
       Jtr_t.noalias() += j * r;
+      rr += r * r;
     }
 #pragma omp critical
     {
@@ -165,7 +179,7 @@ PoseProbe Probe(const ScanFrame& frame, const std::vector<float>* dt,
       Jtr += Jtr_t;
     }
   }
-  FinishProbe<N>(n, covered, inliers, rows, dt2, JtJ, Jtr, iekf, &probe);
+  FinishProbe<N>(n, covered, inliers, rows, dt2, rr, JtJ, Jtr, iekf, &probe);
   return probe;
 }
 
@@ -196,6 +210,7 @@ PoseProbe ProbePoseAssociated(const std::vector<AssociatedPoint>& points,
   PoseProbe probe;
   const Eigen::Vector3d c = T_world_lidar.translation();
   long covered = 0, inliers = 0, rows = 0;
+  double rr = 0.0;
   Eigen::Matrix<double, 6, 6> JtJ = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> Jtr = Eigen::Matrix<double, 6, 1>::Zero();
   for (size_t i = 0; i < points.size(); ++i) {
@@ -213,8 +228,9 @@ PoseProbe ProbePoseAssociated(const std::vector<AssociatedPoint>& points,
     j.tail<3>() = a.normal;
     JtJ.noalias() += j * j.transpose();
     Jtr.noalias() += j * r;
+    rr += r * r;
   }
-  FinishProbe<6>(static_cast<long>(points.size()), covered, inliers, rows, 0.0, JtJ, Jtr, iekf,
+  FinishProbe<6>(static_cast<long>(points.size()), covered, inliers, rows, 0.0, rr, JtJ, Jtr, iekf,
                  &probe);
   return probe;
 }

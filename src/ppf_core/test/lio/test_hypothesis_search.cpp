@@ -275,6 +275,67 @@ TEST(ProbePoseAssociated, PointsBeyondStepPointsCountInTheFitOnly) {
   EXPECT_GT((all.step_pos - alone.step_pos).norm(), 1e-6);
 }
 
+// Associations on the walls and the floor of a 10 m room, seen from its middle: each point is
+// the true surface point moved by `offset` (the pose error a step should undo) plus noise of
+// `noise` m along the surface normal.
+std::vector<AssociatedPoint> RoomAssociations(size_t n, const Eigen::Vector3d& offset,
+                                              double noise, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-4.5, 4.5);
+  std::normal_distribution<double> e(0.0, 1.0);
+  const Eigen::Vector3d normals[] = {Eigen::Vector3d::UnitX(), -Eigen::Vector3d::UnitX(),
+                                     Eigen::Vector3d::UnitY(), -Eigen::Vector3d::UnitY(),
+                                     Eigen::Vector3d::UnitZ()};
+  std::vector<AssociatedPoint> out;
+  for (size_t i = 0; i < n; ++i) {
+    AssociatedPoint a;
+    a.normal = normals[i % 5];
+    a.d = i % 5 == 4 ? 1.5 : 5.0;  // floor at z = -1.5, walls at +-5 m
+    // A point on the plane n . x + d = 0, spread over it.
+    Eigen::Vector3d p(u(rng), u(rng), u(rng) * 0.3);
+    p -= (a.normal.dot(p) + a.d) * a.normal;
+    p += offset + noise * e(rng) * a.normal;
+    a.point_lidar = p.cast<float>();
+    a.covered = true;
+    a.has_plane = true;
+    out.push_back(a);
+  }
+  return out;
+}
+
+// The consistency check's step trigger reads the step in standard deviations of its own estimate
+// (PoseProbe::step_pos_sigmas): a pose error every row agrees on stands far out of the rows'
+// scatter, a step that is the scatter of a hundred noisy rows does not, and the measure does not
+// depend on the size of the residuals, only on how well they agree.
+TEST(ProbePoseAssociated, StepInSigmasSeparatesAnOffsetFromScatter) {
+  const Eigen::Isometry3d at = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d offset(0.3, -0.2, 0.05);
+  const PoseProbe moved = ProbePoseAssociated(RoomAssociations(600, offset, 0.01, 1), at,
+                                              LidarOnlyOptions(), IekfOptions(), 1.0);
+  ASSERT_GT(moved.rows, 500u);
+  EXPECT_LT((moved.step_pos + offset).norm(), 0.02);  // the step undoes the offset
+  EXPECT_GT(moved.step_pos_sigmas, 100.0);
+
+  // A hundred rows of 0.1 m noise and no offset: the step is what the noise leaves, and in its
+  // own sigmas the norm of a 3-D normal sample (below 4 in 99.9 % of draws).
+  const PoseProbe scattered = ProbePoseAssociated(RoomAssociations(100, Eigen::Vector3d::Zero(),
+                                                                   0.1, 2),
+                                                  at, LidarOnlyOptions(), IekfOptions(), 1.0);
+  ASSERT_EQ(scattered.rows, 100u);
+  EXPECT_GT(scattered.step_pos.norm(), 0.0);
+  EXPECT_GT(scattered.step_pos_sigmas, 0.0);
+  EXPECT_LT(scattered.step_pos_sigmas, 4.0);
+
+  // The same rows with ten times the residuals: ten times the step, the same sigmas.
+  const PoseProbe ten = ProbePoseAssociated(RoomAssociations(100, Eigen::Vector3d::Zero(), 1.0, 2),
+                                            at, LidarOnlyOptions(), IekfOptions(), 100.0);
+  const PoseProbe one = ProbePoseAssociated(RoomAssociations(100, Eigen::Vector3d::Zero(), 0.1, 2),
+                                            at, LidarOnlyOptions(), IekfOptions(), 100.0);
+  ASSERT_EQ(ten.rows, one.rows);
+  EXPECT_LT((ten.step_pos - 10.0 * one.step_pos).norm(), 1e-3 * ten.step_pos.norm());
+  EXPECT_NEAR(ten.step_pos_sigmas, one.step_pos_sigmas, 1e-3 * one.step_pos_sigmas);
+}
+
 // The consistency check compares a scan's score with the recent scans' of the same kind. The
 // scores below are those of an undisturbed kPpf hand-held walk (60 s indoor VLP-16): kNN
 // associations fit 0.95-1.0, while a scan with too few of them is scored on a searched sample of

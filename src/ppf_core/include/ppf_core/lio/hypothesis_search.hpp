@@ -78,6 +78,9 @@ struct PoseProbe {
   Eigen::Vector3d step_rot = Eigen::Vector3d::Zero();  // rad, world frame
   Eigen::Vector3d step_pos = Eigen::Vector3d::Zero();  // m, world frame
   Eigen::Vector3d step_vel = Eigen::Vector3d::Zero();  // m/s, world frame (ProbePoseAndVelocity)
+  // The position step in standard deviations of its own estimate (the rows' scatter about it);
+  // 0 with too few rows to tell.
+  double step_pos_sigmas = 0.0;
   size_t rows = 0;
 };
 PoseProbe ProbePose(const ScanFrame& frame, const Eigen::Isometry3d& T_world_lidar,

@@ -899,8 +899,8 @@ IekfReport LioPpf::Impl::OverruleIfInconsistent(const NavState& predicted, const
   if (poor_fit) {
     why << "fit " << fit << " < " << co.fit_ratio << " x recent " << baseline;
   } else {
-    why << "the scan alone moves it " << r->disagreement_pos_m << " m, "
-        << std::setprecision(0) << probe.step_pos_sigmas << " sigma" << std::setprecision(2);
+    why << "the scan alone moves it " << r->disagreement_pos_m << " m, " << std::setprecision(0)
+        << probe.step_pos_sigmas << " sigma" << std::setprecision(2);
   }
   why << ")";
 

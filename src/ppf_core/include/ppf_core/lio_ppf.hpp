@@ -83,7 +83,7 @@ const char* StatusName(Status status);
 // too far while it fit as well as they did.
 enum class ConsistencySearch {
   kNone,
-  kPoorFit,   // fit < consistency.fit_ratio x the recent scans' median
+  kPoorFit,  // fit < consistency.fit_ratio x the recent scans' median
   // fit good; the scan alone moves it > consistency.max_step_pos, > 3x usual and by more than
   // consistency.min_step_sigmas of its own standard deviation
   kScanStep,

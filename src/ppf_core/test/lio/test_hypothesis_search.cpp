@@ -278,8 +278,8 @@ TEST(ProbePoseAssociated, PointsBeyondStepPointsCountInTheFitOnly) {
 // Associations on the walls and the floor of a 10 m room, seen from its middle: each point is
 // the true surface point moved by `offset` (the pose error a step should undo) plus noise of
 // `noise` m along the surface normal.
-std::vector<AssociatedPoint> RoomAssociations(size_t n, const Eigen::Vector3d& offset,
-                                              double noise, unsigned seed) {
+std::vector<AssociatedPoint> RoomAssociations(size_t n, const Eigen::Vector3d& offset, double noise,
+                                              unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-4.5, 4.5);
   std::normal_distribution<double> e(0.0, 1.0);
@@ -318,9 +318,9 @@ TEST(ProbePoseAssociated, StepInSigmasSeparatesAnOffsetFromScatter) {
 
   // A hundred rows of 0.1 m noise and no offset: the step is what the noise leaves, and in its
   // own sigmas the norm of a 3-D normal sample (below 4 in 99.9 % of draws).
-  const PoseProbe scattered = ProbePoseAssociated(RoomAssociations(100, Eigen::Vector3d::Zero(),
-                                                                   0.1, 2),
-                                                  at, LidarOnlyOptions(), IekfOptions(), 1.0);
+  const PoseProbe scattered =
+      ProbePoseAssociated(RoomAssociations(100, Eigen::Vector3d::Zero(), 0.1, 2), at,
+                          LidarOnlyOptions(), IekfOptions(), 1.0);
   ASSERT_EQ(scattered.rows, 100u);
   EXPECT_GT(scattered.step_pos.norm(), 0.0);
   EXPECT_GT(scattered.step_pos_sigmas, 0.0);

@@ -288,7 +288,7 @@ void ValidateConsistency(Config* c, Fixer& fix) {
   fix(!(co->fit_ratio >= 0.0 && co->fit_ratio <= 1.0), "consistency.fit_ratio", &co->fit_ratio, 0.7);
   fix(co->fit_points < 100, "consistency.fit_points", &co->fit_points, 100);
   fix(!(co->max_step_pos > 0.0), "consistency.max_step_pos", &co->max_step_pos, 0.1);
-  fix(!(co->min_step_sigmas >= 0.0), "consistency.min_step_sigmas", &co->min_step_sigmas, 0.0);
+  fix(!(co->min_step_sigmas >= 0.0), "consistency.min_step_sigmas", &co->min_step_sigmas, 15.0);
   fix(!(co->min_gain >= 0.0 && co->min_gain <= 1.0), "consistency.min_gain", &co->min_gain, 0.1);
   fix(!(co->turn_deg >= 0.0 && co->turn_deg <= 45.0), "consistency.turn_deg", &co->turn_deg, 7.5);
 }

@@ -64,8 +64,6 @@ Outcome RunCase(const std::string& bag, const Case& c) {
   EXPECT_TRUE(ppf::tools::test::LoadPresetAndCalibration(c.lidar, bag, &config));
   config.mode = c.mode;
   config.consistency.check = c.expect != Case::kCheckOff;
-  // The step must stand out from its own scatter (measured value; the default is still off).
-  config.consistency.min_step_sigmas = 15.0;
   const auto run = ppf::tools::RunOffline(bag, config);
   ppf::Trajectory gt;
   std::string error;

@@ -124,10 +124,8 @@ struct ConsistencyOptions {
   double max_step_pos = 0.1;  // m
   // ... and by more than this many standard deviations of the step itself, its rows counted as
   // independent (which they are not: they share the map's and the de-skew's errors, so a step
-  // of a few noisy rows reaches several of these on undisturbed scans). 0: the distance alone.
-  // Measured at 15 (docs/decisions.md, "Consistency check"); off by default until the TSan
-  // stage's Cyclone node run, which then no longer searches, passes with it.
-  double min_step_sigmas = 0.0;
+  // of a few noisy rows reaches several of these on undisturbed scans).
+  double min_step_sigmas = 15.0;
   // A re-anchored posterior is taken when it fits at least this much better (share of the sample
   // points), or no worse while the scan alone no longer moves it past the bounds above.
   double min_gain = 0.1;

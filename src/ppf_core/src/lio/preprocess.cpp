@@ -62,45 +62,54 @@ void WriteMean(const Acc& a, double t_ref, TimedPoint* tp) {
   tp->t = t_ref + a.dt * inv_n;
 }
 
-}  // namespace
-
-void VoxelGridDownsampler::Grid::Begin(size_t expected_voxels) {
-  if (++generation == 0) {  // wrapped after 2^32 scans: forget every stamp once
-    table.assign(table.size(), Slot());
-    generation = 1;
-  }
-  acc.clear();
-  first.clear();
-  Reserve(expected_voxels);
+// The table slots for a voxel count: at most half full, at least 1024.
+size_t SlotsFor(size_t voxels) {
+  size_t slots = 1024;
+  while (slots < 2 * voxels) slots <<= 1;
+  return slots;
 }
 
-void VoxelGridDownsampler::Grid::Reserve(size_t expected_voxels) {
-  size_t capacity = 1024;
-  while (capacity < 2 * expected_voxels) capacity <<= 1;
-  if (capacity <= table.size()) return;
-  // Re-insert the voxels of the current call: Accumulate() grows the table mid-scan when needed.
-  std::vector<Slot> old;
-  old.swap(table);
-  table.assign(capacity, Slot());
-  const int shift = 64 - __builtin_ctzll(capacity);
-  for (const Slot& s : old) {
-    if (s.generation != generation) continue;
-    for (size_t h = Mix(s.key) >> shift;; h = (h + 1) & (capacity - 1)) {
-      if (table[h].generation != generation) {
-        table[h] = s;
-        break;
-      }
-    }
+}  // namespace
+
+void VoxelGridDownsampler::Grid::Begin(size_t expected_voxels, size_t max_voxels) {
+  // Grow() stamps a generation per doubling, at most one per bit of the slot count: wrap here,
+  // with room for them, and forget every stamp once.
+  if (generation > std::numeric_limits<uint32_t>::max() - 64) {
+    table.assign(table.size(), Slot());
+    generation = 0;
+  }
+  ++generation;
+  acc.clear();
+  keys.clear();
+  first.clear();
+  acc.reserve(max_voxels);
+  keys.reserve(max_voxels);
+  first.reserve(max_voxels);
+  const size_t slots = SlotsFor(max_voxels);
+  if (slots > table.size()) table.assign(slots, Slot());  // stamps 0: never a generation
+  // The share keeps what earlier calls grew it to, as the whole table did before it had one.
+  active = std::min(table.size(), std::max(active, SlotsFor(expected_voxels)));
+}
+
+void VoxelGridDownsampler::Grid::Grow() {
+  if (2 * active > table.size()) table.assign(2 * active, Slot());  // serial path only
+  active *= 2;
+  ++generation;
+  const int shift = 64 - __builtin_ctzll(active);
+  for (size_t i = 0; i < keys.size(); ++i) {
+    size_t h = Mix(keys[i]) >> shift;
+    while (table[h].generation == generation) h = (h + 1) & (active - 1);
+    table[h] = Slot{keys[i], generation, static_cast<uint32_t>(i)};
   }
 }
 
 template <bool kRecordFirst, typename ForEach>
 void VoxelGridDownsampler::Grid::Accumulate(double t_ref, ForEach&& for_each) {
   // Locals, not members, in the probe loop: the slot stores could otherwise alias them.
-  const uint32_t gen = generation;
+  uint32_t gen = generation;
   Slot* slots = table.data();
-  size_t mask = table.size() - 1;
-  int shift = 64 - __builtin_ctzll(table.size());
+  size_t mask = active - 1;
+  int shift = 64 - __builtin_ctzll(active);
   // The parallel path knows the keys ahead: it prefetches the slot of a later key, since the
   // slot load misses the cache on most points.
   const auto prefetch = [&](uint64_t key) { __builtin_prefetch(&slots[Mix(key) >> shift]); };
@@ -117,12 +126,14 @@ void VoxelGridDownsampler::Grid::Accumulate(double t_ref, ForEach&& for_each) {
       slot = Slot{key, gen, index};
       acc.emplace_back();
       accs = acc.data();
+      keys.push_back(key);
       if (kRecordFirst) first.push_back(static_cast<uint32_t>(input_index));
       if (2 * voxels > mask + 1) {
-        Reserve(voxels * 2);  // moves slots, not indices
+        Grow();  // moves slots, not indices
+        gen = generation;
         slots = table.data();
-        mask = table.size() - 1;
-        shift = 64 - __builtin_ctzll(table.size());
+        mask = active - 1;
+        shift = 64 - __builtin_ctzll(active);
       }
     }
     Accumulator& a = accs[index];
@@ -168,7 +179,7 @@ PreprocessStats VoxelGridDownsampler::Run(const std::vector<TimedPoint>& in, dou
   }
 
   Grid& g = grids_[0];
-  g.Begin(in.size() / stride / 8);
+  g.Begin(in.size() / stride / 8, in.size() / stride / 8);
   size_t valid = 0;
   g.Accumulate<false>(km.t_ref, [&](auto&& add, auto&&) {
     // Locals: the accumulator stores could alias in's size, reloaded per point otherwise.
@@ -241,8 +252,16 @@ PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>&
     }
     for (size_t o = 0; o < nt; ++o) count[o * nt + t] = n[o];
 #pragma omp barrier
+    // Thread 0 is the calling thread: it sizes every grid for all the keys the grid owns.
+    if (t == 0) {
+      for (size_t o = 0; o < nt; ++o) {
+        size_t owned = 0;
+        for (size_t c = 0; c < nt; ++c) owned += count[o * nt + c];
+        grids_[o].Begin(sampled / 8 / nt, owned);
+      }
+    }
+#pragma omp barrier
     Grid& g = grids_[t];
-    g.Begin(sampled / 8 / nt);
     g.Accumulate<true>(km.t_ref, [&](auto&& add, auto&& prefetch) {
       constexpr size_t kAhead = 16;
       for (size_t c = 0; c < nt; ++c) {

@@ -163,11 +163,12 @@ TEST(Preprocess, DownsampleThenDeskewEqualsDeskewThenDownsample) {
 }
 
 // The parallel grid (each thread owning a share of the voxels) must give the serial output bit
-// for bit: same voxels in the same order, same sums added in the same order.
+// for bit: same voxels in the same order, same sums added in the same order. Also when its grids
+// double their hashed share within a call (a sparse cloud, a voxel per point, after a dense one).
 TEST(Preprocess, ParallelGridEqualsSerialBitForBit) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(-1.f, 1.f);
-  std::vector<TimedPoint> in;
+  std::vector<TimedPoint> dense, sparse;
   // A spinning scan's shape: dense near the sensor (many points per voxel, voxels around the
   // origin with coordinates of both signs), sparse far away, a few out-of-range points, times
   // over one sweep with the seam at the end.
@@ -176,29 +177,40 @@ TEST(Preprocess, ParallelGridEqualsSerialBitForBit) {
     const float r = 0.3f + 40.f * std::pow(std::abs(u(rng)), 3.f);
     const float a = 6.2831853f * static_cast<float>(i) / static_cast<float>(n) + 0.01f * u(rng);
     const Eigen::Vector3f p(r * std::cos(a), r * std::sin(a), -1.7f + 0.5f * u(rng));
-    in.push_back({p, 100.f * std::abs(u(rng)), 40.0 + 0.1 * i / n});
+    dense.push_back({p, 100.f * std::abs(u(rng)), 40.0 + 0.1 * i / n});
+    // 1.3 m apart in x and y, jittered within their 0.5 m voxel: no two share one.
+    const Eigen::Vector3f q(1.3f * static_cast<float>(i % 200 - 100) + 0.1f * u(rng),
+                            1.3f * static_cast<float>(i / 200 - 120) + 0.1f * u(rng), 0.2f);
+    sparse.push_back({q, 50.f, 40.0 + 0.1 * i / n});
   }
   for (const int stride : {1, 2}) {
     PreprocessOptions options;
     options.point_stride = stride;
     options.num_threads = 1;
-    VoxelGridDownsampler serial;
-    std::vector<TimedPoint> reference;
-    const PreprocessStats ref_stats = serial.Run(in, 40.0, options, &reference);
-    ASSERT_GT(ref_stats.valid_points / 2, reference.size()) << "voxels hold several points";
+    std::vector<TimedPoint> reference[2];
+    PreprocessStats ref_stats[2];
+    {
+      VoxelGridDownsampler serial;
+      ref_stats[0] = serial.Run(dense, 40.0, options, &reference[0]);
+      ref_stats[1] = serial.Run(sparse, 40.0, options, &reference[1]);
+    }
+    ASSERT_GT(ref_stats[0].valid_points / 2, reference[0].size()) << "voxels hold several points";
+    ASSERT_EQ(ref_stats[1].valid_points, reference[1].size()) << "a voxel per point";
     for (const int threads : {2, 1, 3, 2}) {  // a grid reused after another thread count
       options.num_threads = threads;
       VoxelGridDownsampler parallel;
       std::vector<TimedPoint> out;
-      for (int call = 0; call < 2; ++call) {
-        const PreprocessStats stats = parallel.Run(in, 40.0, options, &out);
-        EXPECT_EQ(stats.valid_points, ref_stats.valid_points);
-        ASSERT_EQ(out.size(), reference.size()) << threads << " threads";
+      for (const int cloud : {0, 1, 0, 1}) {
+        const PreprocessStats stats =
+            parallel.Run(cloud == 0 ? dense : sparse, 40.0, options, &out);
+        EXPECT_EQ(stats.valid_points, ref_stats[cloud].valid_points);
+        const std::vector<TimedPoint>& ref = reference[cloud];
+        ASSERT_EQ(out.size(), ref.size()) << threads << " threads, cloud " << cloud;
         for (size_t i = 0; i < out.size(); ++i) {
-          ASSERT_EQ(std::memcmp(out[i].p.data(), reference[i].p.data(), sizeof(float) * 3), 0)
-              << threads << " threads, voxel " << i;
-          ASSERT_EQ(std::memcmp(&out[i].intensity, &reference[i].intensity, sizeof(float)), 0);
-          ASSERT_EQ(std::memcmp(&out[i].t, &reference[i].t, sizeof(double)), 0);
+          ASSERT_EQ(std::memcmp(out[i].p.data(), ref[i].p.data(), sizeof(float) * 3), 0)
+              << threads << " threads, cloud " << cloud << ", voxel " << i;
+          ASSERT_EQ(std::memcmp(&out[i].intensity, &ref[i].intensity, sizeof(float)), 0);
+          ASSERT_EQ(std::memcmp(&out[i].t, &ref[i].t, sizeof(double)), 0);
         }
       }
     }

@@ -70,13 +70,24 @@ class VoxelGridDownsampler {
   // path uses one; the parallel path one per thread, each owning a hash-chosen share of the voxels
   // and seeing every point of them in input order, so that every voxel's sums are added in the
   // serial order (floating-point sums depend on it).
+  //
+  // The table hashes into its first `active` slots (a power of two) and doubles that share when
+  // half full. Doubling within the allocated slots stamps a new generation and re-inserts the
+  // voxels from `keys`, so it allocates nothing: the parallel path allocates every grid's memory on
+  // the calling thread, for every key the grid owns, and its threads only store into it (a sanitizer
+  // sees a region's start and end only through the OpenMP runtime, so a buffer a worker reallocated
+  // and the calling thread later freed reads as a race).
   struct Grid {
     std::vector<Slot> table;
     std::vector<Accumulator> acc;
+    std::vector<uint64_t> keys;   // each voxel's key, for re-insertion
     std::vector<uint32_t> first;  // parallel path: input index of each voxel's first point
+    size_t active = 0;
     uint32_t generation = 0;
-    void Begin(size_t expected_voxels);
-    void Reserve(size_t expected_voxels);
+    // Starts a call: `expected_voxels` sizes the hashed share, and no buffer reallocates before
+    // `max_voxels` voxels (the serial path passes its estimate: it may grow on its own thread).
+    void Begin(size_t expected_voxels, size_t max_voxels);
+    void Grow();
     // for_each(add, prefetch) calls add(key, point, input index) for this grid's points in input
     // order; prefetch(key) may announce a later key.
     template <bool kRecordFirst, typename ForEach>

@@ -72,18 +72,13 @@ size_t SlotsFor(size_t voxels) {
 }  // namespace
 
 void VoxelGridDownsampler::Grid::Begin(size_t expected_voxels, size_t max_voxels) {
-  // Grow() stamps a generation per doubling, at most one per bit of the slot count: wrap here,
-  // with room for them, and forget every stamp once.
-  if (generation > std::numeric_limits<uint32_t>::max() - 64) {
+  if (++generation == 0) {  // wrapped after 2^32 scans: forget every stamp once
     table.assign(table.size(), Slot());
-    generation = 0;
+    generation = 1;
   }
-  ++generation;
   acc.clear();
-  keys.clear();
   first.clear();
   acc.reserve(max_voxels);
-  keys.reserve(max_voxels);
   first.reserve(max_voxels);
   const size_t slots = SlotsFor(max_voxels);
   if (slots > table.size()) table.assign(slots, Slot());  // stamps 0: never a generation
@@ -92,21 +87,27 @@ void VoxelGridDownsampler::Grid::Begin(size_t expected_voxels, size_t max_voxels
 }
 
 void VoxelGridDownsampler::Grid::Grow() {
-  if (2 * active > table.size()) table.assign(2 * active, Slot());  // serial path only
+  if (2 * active > table.size()) {
+    table.assign(2 * active, Slot());  // serial path only
+  } else {
+    // Empty the old share stamp by stamp (a strided store, never a memset call: a sanitizer
+    // intercepts that one); the slots beyond it were never stamped in this call.
+    for (size_t h = 0; h < active; ++h) table[h].generation = 0;
+  }
   active *= 2;
-  ++generation;
   const int shift = 64 - __builtin_ctzll(active);
-  for (size_t i = 0; i < keys.size(); ++i) {
-    size_t h = Mix(keys[i]) >> shift;
+  for (size_t i = 0; i < acc.size(); ++i) {
+    const uint64_t key = acc[i].key;
+    size_t h = Mix(key) >> shift;
     while (table[h].generation == generation) h = (h + 1) & (active - 1);
-    table[h] = Slot{keys[i], generation, static_cast<uint32_t>(i)};
+    table[h] = Slot{key, generation, static_cast<uint32_t>(i)};
   }
 }
 
 template <bool kRecordFirst, typename ForEach>
 void VoxelGridDownsampler::Grid::Accumulate(double t_ref, ForEach&& for_each) {
   // Locals, not members, in the probe loop: the slot stores could otherwise alias them.
-  uint32_t gen = generation;
+  const uint32_t gen = generation;
   Slot* slots = table.data();
   size_t mask = active - 1;
   int shift = 64 - __builtin_ctzll(active);
@@ -124,13 +125,11 @@ void VoxelGridDownsampler::Grid::Accumulate(double t_ref, ForEach&& for_each) {
     if (slot.generation != gen) {
       index = static_cast<uint32_t>(voxels++);
       slot = Slot{key, gen, index};
-      acc.emplace_back();
+      acc.emplace_back().key = key;
       accs = acc.data();
-      keys.push_back(key);
       if (kRecordFirst) first.push_back(static_cast<uint32_t>(input_index));
       if (2 * voxels > mask + 1) {
         Grow();  // moves slots, not indices
-        gen = generation;
         slots = table.data();
         mask = active - 1;
         shift = 64 - __builtin_ctzll(active);

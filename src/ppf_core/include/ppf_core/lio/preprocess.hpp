@@ -65,6 +65,7 @@ class VoxelGridDownsampler {
     double x = 0, y = 0, z = 0, dt = 0;
     float intensity = 0.f;
     uint32_t count = 0;
+    uint64_t key = 0;  // for re-insertion
   };
   // One open-addressing voxel table with its accumulators in order of first appearance. The serial
   // path uses one; the parallel path one per thread, each owning a hash-chosen share of the voxels
@@ -72,15 +73,14 @@ class VoxelGridDownsampler {
   // serial order (floating-point sums depend on it).
   //
   // The table hashes into its first `active` slots (a power of two) and doubles that share when
-  // half full. Doubling within the allocated slots stamps a new generation and re-inserts the
-  // voxels from `keys`, so it allocates nothing: the parallel path allocates every grid's memory on
-  // the calling thread, for every key the grid owns, and its threads only store into it (a sanitizer
-  // sees a region's start and end only through the OpenMP runtime, so a buffer a worker reallocated
-  // and the calling thread later freed reads as a race).
+  // half full, re-inserting the voxels from their accumulators' keys. Within the allocated slots
+  // that allocates nothing: the parallel path allocates every grid's memory on the calling
+  // thread, for every key the grid owns, and its threads only store into it (a sanitizer sees a
+  // region's start and end only through the OpenMP runtime, so a buffer a worker reallocated and
+  // the calling thread later freed reads as a race).
   struct Grid {
     std::vector<Slot> table;
     std::vector<Accumulator> acc;
-    std::vector<uint64_t> keys;   // each voxel's key, for re-insertion
     std::vector<uint32_t> first;  // parallel path: input index of each voxel's first point
     size_t active = 0;
     uint32_t generation = 0;

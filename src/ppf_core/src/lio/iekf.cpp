@@ -111,20 +111,32 @@ void GatherRows(const IekfOptions& options, int iter, bool reuse_rows,
   report->num_rows = static_cast<int>(rows->size());
 }
 
-// The rows' normal equations in the pose block. J = d r / d [dtheta, dp]. JtJ (row weights
-// only) judges the geometry; the update uses the rows' range-dependent noise too (JtJ_noise,
-// Jtr), so a far row counts less but still pins a direction nothing else observes.
+// The rows' normal equations in the pose block. J = d r / d [dtheta, dp]. The geometry (row
+// weights only) is judged per block, rotation and translation (MeasurementInformation): only
+// those two diagonal blocks of its J^T J are summed, the coupling between them never read. The
+// update uses the rows' range-dependent noise too (JtJ_noise, Jtr), so a far row counts less but
+// still pins a direction nothing else observes.
 struct NormalEquations {
-  Mat6 JtJ = Mat6::Zero();
+  Eigen::Matrix3d JtJ_rot = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d JtJ_trans = Eigen::Matrix3d::Zero();
   Mat6 JtJ_noise = Mat6::Zero();
   Vec6 Jtr = Vec6::Zero();
 };
 
-// Adds w j j^T to the lower triangle of M; the upper one is filled once, at the end.
-inline void AddLower(double w, const Vec6& j, Mat6* M) {
-  for (int c = 0; c < 6; ++c) {
+// Adds w j j^T to the lower triangle of M; the upper one is filled once, at the end (FillUpper).
+template <int N>
+inline void AddLower(double w, const Eigen::Matrix<double, N, 1>& j,
+                     Eigen::Matrix<double, N, N>* M) {
+  for (int c = 0; c < N; ++c) {
     const double wj = w * j(c);
-    for (int r = c; r < 6; ++r) (*M)(r, c) += wj * j(r);
+    for (int r = c; r < N; ++r) (*M)(r, c) += wj * j(r);
+  }
+}
+
+template <int N>
+inline void FillUpper(Eigen::Matrix<double, N, N>* M) {
+  for (int c = 1; c < N; ++c) {
+    for (int r = 0; r < c; ++r) (*M)(r, c) = (*M)(c, r);
   }
 }
 
@@ -150,17 +162,17 @@ void AddGroup(const Eigen::Vector3d& q0, const Eigen::Vector3d& n, const Eigen::
   // q x m = K^T q with K the cross-product matrix of m.
   Eigen::Matrix3d K;
   K << 0.0, -m.z(), m.y(), m.z(), 0.0, -m.x(), -m.y(), m.x(), 0.0;
-  const auto add_info = [&](const Moments& g, Mat6* M) {
-    const Eigen::Vector3d q1 = g.s0 * q0 + g.s1;  // sum w q
+  const auto rot_info = [&](const Moments& g) {
     const Eigen::Matrix3d q2 = g.s0 * q0 * q0.transpose() + q0 * g.s1.transpose() +
                                g.s1 * q0.transpose() + g.s2;  // sum w q q^T
-    M->topLeftCorner<3, 3>() += K.transpose() * q2 * K;
-    M->bottomLeftCorner<3, 3>() += n * (K.transpose() * q1).transpose();
-    M->bottomRightCorner<3, 3>() += g.s0 * n * n.transpose();
+    return Eigen::Matrix3d(K.transpose() * q2 * K);
   };
-  add_info(w, &ne->JtJ);
-  add_info(w_noise, &ne->JtJ_noise);
-  const Eigen::Vector3d q1 = w_noise.s0 * q0 + w_noise.s1;
+  ne->JtJ_rot += rot_info(w);
+  ne->JtJ_trans += w.s0 * n * n.transpose();
+  const Eigen::Vector3d q1 = w_noise.s0 * q0 + w_noise.s1;  // sum w q
+  ne->JtJ_noise.topLeftCorner<3, 3>() += rot_info(w_noise);
+  ne->JtJ_noise.bottomLeftCorner<3, 3>() += n * (K.transpose() * q1).transpose();
+  ne->JtJ_noise.bottomRightCorner<3, 3>() += w_noise.s0 * n * n.transpose();
   ne->Jtr.head<3>() += K.transpose() * (r0 * q1 + q0 * w_noise.s1.dot(m) + w_noise.s2 * m);
   ne->Jtr.tail<3>() += (r0 * w_noise.s0 + m.dot(w_noise.s1)) * n;
 }
@@ -207,20 +219,18 @@ NormalEquations BuildNormalEquations(const IekfOptions& options,
         Vec6 j;
         j.head<3>() = q.cross(m);
         j.tail<3>() = row.normal_world;
-        AddLower(row.weight, j, &ne.JtJ);
+        AddLower<3>(row.weight, j.head<3>(), &ne.JtJ_rot);
+        AddLower<3>(row.weight, j.tail<3>(), &ne.JtJ_trans);
         const double w = noise_weight(row);
-        AddLower(w, j, &ne.JtJ_noise);
+        AddLower<6>(w, j, &ne.JtJ_noise);
         ne.Jtr.noalias() += (w * r) * j;
       }
     }
     i = end;
   }
-  for (int c = 1; c < 6; ++c) {
-    for (int r = 0; r < c; ++r) {
-      ne.JtJ(r, c) = ne.JtJ(c, r);
-      ne.JtJ_noise(r, c) = ne.JtJ_noise(c, r);
-    }
-  }
+  FillUpper<6>(&ne.JtJ_noise);
+  FillUpper<3>(&ne.JtJ_rot);
+  FillUpper<3>(&ne.JtJ_trans);
   return ne;
 }
 
@@ -232,11 +242,11 @@ void MeasurementInformation(const IekfOptions& options, const NormalEquations& n
   report->degenerate_reason.clear();
   Mat6 proj = Mat6::Zero();
   proj.topLeftCorner<3, 3>() =
-      StrongProjector(ne.JtJ.topLeftCorner<3, 3>(), options.degeneracy_min_eig_rotation,
-                      "rotation", &report->eig_rotation, &report->degenerate_reason);
+      StrongProjector(ne.JtJ_rot, options.degeneracy_min_eig_rotation, "rotation",
+                      &report->eig_rotation, &report->degenerate_reason);
   proj.bottomRightCorner<3, 3>() =
-      StrongProjector(ne.JtJ.bottomRightCorner<3, 3>(), options.degeneracy_min_eig_translation,
-                      "translation", &report->eig_translation, &report->degenerate_reason);
+      StrongProjector(ne.JtJ_trans, options.degeneracy_min_eig_translation, "translation",
+                      &report->eig_translation, &report->degenerate_reason);
   report->degenerate = !report->degenerate_reason.empty();
   const double inv_var = 1.0 / (options.laser_point_std * options.laser_point_std);
   *H = inv_var * ne.JtJ_noise;

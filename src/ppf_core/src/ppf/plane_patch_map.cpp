@@ -48,7 +48,7 @@ void PlanePatchMap::Insert(const Eigen::Vector3d& p_world, const Eigen::Vector3d
   const double min_cos = same_surface_cos_;
   Patch* patch = nullptr;
   for (Patch& candidate : cell.patches) {
-    const Eigen::Vector3d n = candidate.normal_sum.normalized();
+    const Eigen::Vector3d& n = candidate.normal_dir;
     if (std::abs(n.dot(n_world)) >= min_cos &&
         std::abs(n.dot(p_world - candidate.moments.centroid)) < options_.same_surface_offset) {
       patch = &candidate;
@@ -66,8 +66,10 @@ void PlanePatchMap::Insert(const Eigen::Vector3d& p_world, const Eigen::Vector3d
     cell.changed = generation_ + 1;
     touched_.push_back(key);
   }
+  patch->changed = generation_ + 1;
   // Normals of one surface may arrive with either sign (planes are fitted per scan).
   patch->normal_sum += patch->normal_sum.dot(n_world) < 0.0 ? -n_world : n_world;
+  patch->normal_dir = patch->normal_sum.normalized();
   PlaneMoments one;
   one.count = 1.0;
   one.centroid = p_world;
@@ -82,7 +84,7 @@ void PlanePatchMap::Refit(Patch* patch) const {
   const Eigen::Vector3d ev = es.eigenvalues();
   const double min_spread = options_.min_spread_ratio * options_.cell_size;
   if (ev(1) / m.count < min_spread * min_spread || !(ev(0) < 0.1 * ev(1))) return;
-  const Eigen::Vector3d n = patch->normal_sum.normalized();
+  const Eigen::Vector3d& n = patch->normal_dir;
   const Eigen::Vector3d pca = es.eigenvectors().col(0);
   if (std::abs(pca.dot(n)) < same_surface_cos_) return;
   patch->plane = Plane{pca, -pca.dot(m.centroid)};
@@ -93,7 +95,10 @@ void PlanePatchMap::FinishInsert() {
   for (uint64_t key : touched_) {
     auto it = cells_.find(key);
     if (it == cells_.end()) continue;
-    for (Patch& p : it->second.patches) Refit(&p);
+    // A patch no point changed since its last refit would come out the same.
+    for (Patch& p : it->second.patches) {
+      if (p.changed == generation_ + 1) Refit(&p);
+    }
   }
   touched_.clear();
   ++generation_;

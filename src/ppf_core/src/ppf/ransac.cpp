@@ -78,6 +78,38 @@ int CountInliersSoa(const SoaPoints& p, const Hypothesis& h, float delta) {
   return CountRangeSoa(p, h, delta, 0, p.x.size());
 }
 
+// Inliers of each of h[0, nh) among all points of p: four hypotheses per pass over the points,
+// so each point's loads and the loop's own instructions serve four counts (a pre-test subset is
+// a few hundred points, where those are a large part of a count). The same float expression
+// per point and hypothesis as CountRangeSoa, so the same counts.
+PPF_RANSAC_CLONES void CountManySoa(const SoaPoints& p, const Hypothesis* h, int nh, float delta,
+                                    int* counts) {
+  const float* x = p.x.data();
+  const float* y = p.y.data();
+  const float* z = p.z.data();
+  const size_t n = p.x.size();
+  int b = 0;
+  for (; b + 4 <= nh; b += 4) {
+    const float nx0 = h[b].n.x(), ny0 = h[b].n.y(), nz0 = h[b].n.z(), d0 = h[b].d;
+    const float nx1 = h[b + 1].n.x(), ny1 = h[b + 1].n.y(), nz1 = h[b + 1].n.z(), d1 = h[b + 1].d;
+    const float nx2 = h[b + 2].n.x(), ny2 = h[b + 2].n.y(), nz2 = h[b + 2].n.z(), d2 = h[b + 2].d;
+    const float nx3 = h[b + 3].n.x(), ny3 = h[b + 3].n.y(), nz3 = h[b + 3].n.z(), d3 = h[b + 3].d;
+    int c0 = 0, c1 = 0, c2 = 0, c3 = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const float xi = x[i], yi = y[i], zi = z[i];
+      c0 += (std::abs(nx0 * xi + ny0 * yi + nz0 * zi + d0) < delta) ? 1 : 0;
+      c1 += (std::abs(nx1 * xi + ny1 * yi + nz1 * zi + d1) < delta) ? 1 : 0;
+      c2 += (std::abs(nx2 * xi + ny2 * yi + nz2 * zi + d2) < delta) ? 1 : 0;
+      c3 += (std::abs(nx3 * xi + ny3 * yi + nz3 * zi + d3) < delta) ? 1 : 0;
+    }
+    counts[b] = c0;
+    counts[b + 1] = c1;
+    counts[b + 2] = c2;
+    counts[b + 3] = c3;
+  }
+  for (; b < nh; ++b) counts[b] = CountRangeSoa(p, h[b], delta, 0, n);
+}
+
 // Scores of hypotheses with no exact count; both below any count, so neither becomes the best.
 constexpr int kPretestRejected = -1;  // the pre-test on the subset rejected it
 constexpr int kAbandoned = -2;        // its full count stopped early (CountInliersAbove)
@@ -179,9 +211,13 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
     // The reference is fixed during the batch, so the pre-test decisions do not depend on threads.
     const long reference = std::max<long>(best_count, min_inliers);
     const bool pretest = stride > 1 && reference * m >= kPretestMinExpected * static_cast<long>(n);
+    const bool parallel = static_cast<long>(n) * filled > kParallelWork && detail::MayOpenTeam();
+    // Serially the batch's pre-test counts are made together, four hypotheses per pass.
+    int sub_count[kBatch];
+    if (pretest && !parallel) CountManySoa(subset, batch, filled, delta, sub_count);
     const auto score = [&](int b) {
       if (pretest) {
-        const long sub = CountInliersSoa(subset, batch[b], delta);
+        const long sub = parallel ? CountInliersSoa(subset, batch[b], delta) : sub_count[b];
         if (2 * sub * static_cast<long>(n) < reference * m) {
           batch_count[b] = kPretestRejected;
           return;
@@ -189,7 +225,7 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
       }
       batch_count[b] = CountInliersAbove(soa, batch[b], delta, best_count);
     };
-    if (static_cast<long>(n) * filled > kParallelWork && detail::MayOpenTeam()) {
+    if (parallel) {
 #pragma omp parallel for schedule(static)
       for (int b = 0; b < filled; ++b) score(b);
     } else {

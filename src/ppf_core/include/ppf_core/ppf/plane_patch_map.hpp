@@ -55,9 +55,12 @@ class PlanePatchMap {
  public:
   struct Patch {
     Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();  // of the inserting planes' normals
+    // normal_sum.normalized(), kept with it: Insert compares it with every point's normal.
+    Eigen::Vector3d normal_dir = Eigen::Vector3d::Zero();
     PlaneMoments moments;
     Plane plane;          // the PCA plane of the moments; meaningful only if usable
     bool usable = false;  // >= min_points spanning two directions, PCA normal near normal_sum
+    uint64_t changed = 0;  // insert generation whose points changed it: refit at FinishInsert
   };
 
   explicit PlanePatchMap(const PlanePatchMapOptions& options = PlanePatchMapOptions());
@@ -92,7 +95,7 @@ class PlanePatchMap {
   struct Cell {
     std::vector<Patch> patches;
     uint64_t last_insert = 0;  // insert generation, for the max_cells bound
-    uint64_t changed = 0;      // generation whose points changed a patch: refit at FinishInsert
+    uint64_t changed = 0;      // generation whose points changed one of its patches
   };
   uint64_t KeyOf(const Eigen::Vector3d& p) const;
   void Refit(Patch* patch) const;

@@ -1,9 +1,11 @@
 // Multi-host, as on a robot whose LiDAR driver runs on another computer: ppf_replay and ppf_node in
 // two network namespaces joined by a veth pair, so DDS between them can only go over UDP, with the
 // UDP-only profile (config/dds/udp_only.xml) and multicast discovery as a user would run it.
-//   - HDL-64 clouds (~3.9 MB) at real-time rate: every scan and IMU sample arrives, none lost;
-//   - the link cut for 2 s mid-drive (`ip link set down`) and restored: the same node process
-//     keeps publishing odometry within the accuracy bound and reports what it lost and the gap.
+//   - HDL-64 clouds (~3.9 MB) at real-time rate with reliable sensor QoS: every scan and IMU
+//     sample arrives, none lost;
+//   - the link cut for 2 s mid-drive (`ip link set down`) and restored, with the default
+//     best-effort readers: the same node process keeps publishing odometry within the accuracy
+//     bound and reports what it lost and the gap.
 // Needs root and iproute2 (ip netns, veth); without them every test is skipped with the reason.
 #include <gtest/gtest.h>
 
@@ -223,8 +225,9 @@ class MultiHost : public ::testing::Test {
   }
 
   // Node in one namespace, replay in the other, real time; with cut_link the link goes down
-  // kCutAfterS after the replay started, for kCutSeconds.
-  void Run(const std::string& dir, bool cut_link, RunResult* out) {
+  // kCutAfterS after the replay started, for kCutSeconds. `reliable` sets the node's sensor
+  // readers to reliable (the replay's writers are reliable, 50 deep).
+  void Run(const std::string& dir, bool cut_link, bool reliable, RunResult* out) {
     ASSERT_EQ(mkdir(dir.c_str(), 0755), 0);
     TwoHosts net(ip_, dir);
     std::string error;
@@ -237,7 +240,8 @@ class MultiHost : public ::testing::Test {
           << "\", profile_name: " << kUdpProfile << "}\n"
           << "core: {config_file: \"" << PPF_CONFIG_DIR << "/hdl64.yaml\", calibration_file: \""
           << dir_ << "/bag/calibration.yaml\"}\n"
-          << "trajectory: {tum_file: \"" << dir << "/node.tum\"}\n";
+          << "trajectory: {tum_file: \"" << dir << "/node.tum\"}\n"
+          << "qos: {sensor_reliability: " << (reliable ? "reliable" : "best_effort") << "}\n";
     }
     std::vector<std::string> node_cmd = net.InNode();
     node_cmd.insert(node_cmd.end(), {PPF_NODE_EXE, "--config", dir + "/node.yaml"});
@@ -297,9 +301,14 @@ void ExpectScansAccountedFor(const std::string& s) {
             SummaryField(s, "scans_received"));
 }
 
+// Reliable, because best effort cannot promise this here: the kernel caps the socket buffers the
+// profile asks for (8 MB) at net.core.rmem_max, which the test's namespaces may not raise (denied
+// here), and a 3.9 MB cloud is dozens of datagrams: one dropped while the receive thread waits for
+// a core loses the whole cloud (counted in scans_lost; the link-cut test asserts that accounting).
+// Reliable readers have the writer resend the missing fragments.
 TEST_F(MultiHost, RealTimeHdl64OverUdpLosesNothing) {
   RunResult run;
-  Run(dir_ + "/rt", false, &run);
+  Run(dir_ + "/rt", false, true, &run);
   ASSERT_FALSE(HasFatalFailure());
   const std::string& s = run.summary;
   EXPECT_NE(run.replay_done.find("/points=" + std::to_string(static_cast<int>(bag_scans_))),
@@ -319,7 +328,7 @@ TEST_F(MultiHost, RealTimeHdl64OverUdpLosesNothing) {
 
 TEST_F(MultiHost, LinkDownTwoSecondsNodeContinuesAndReportsTheGap) {
   RunResult run;
-  Run(dir_ + "/cut", true, &run);
+  Run(dir_ + "/cut", true, false, &run);
   ASSERT_FALSE(HasFatalFailure());
   const std::string& s = run.summary;
   const double scans_lost = SummaryField(s, "scans_lost");

@@ -129,6 +129,18 @@ void ReportCoreStall(const CoreStallPoll& p) {
   }
 }
 
+// After the drain: an episode the drain did not end (the last scans were all refused, or the
+// core still had none to answer) is said to be open at the stop, so every core_stalls episode
+// has its end in the log.
+void ReportCoreStallAtStop(const CoreStallPoll& p) {
+  ReportCoreStall(p);
+  if (!p.stalled) return;
+  char secs[32];
+  std::snprintf(secs, sizeof(secs), "%.1f", p.seconds);
+  Log(Level::kWarn, std::string("core stall ") + std::to_string(p.episode) +
+                        " still open at the stop: no scan processed for the last " + secs + " s");
+}
+
 }  // namespace
 
 void PpfNode::run() {
@@ -170,6 +182,7 @@ void PpfNode::run() {
   m.inputs.StopAccepting();
   m.executor->RequestDrain();
   executor.join();
+  ReportCoreStallAtStop(m.stats.CheckCoreStall(Clock::now()));
   const auto drained = Clock::now();
   m.FlushLogs();  // the counts of bursts no later line reported
   if (!m.config.tum_file.empty()) {

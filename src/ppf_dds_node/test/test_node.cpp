@@ -157,12 +157,30 @@ TEST(NodeProcess, SyntheticRoomGivesOdometryTfPathPlanesAndCountsMalformedInput)
   // After initialization every scan gives a pose; allow a slow machine 20 s to catch up.
   WaitUntil([&] { return rig.odom.Count() >= static_cast<size_t>(kScans) - 2; }, 20s);
   std::this_thread::sleep_for(500ms);
+  // Then only refused clouds for 1.5 s, and the stop: a core stall (scans arrive, none is
+  // processed) that is still open when the node stops, and said so.
+  constexpr int kRefusedAtEnd = 15;
+  bad.payload = ppf::msgs::EncodeCdr(weird);
+  for (int i = 0; i < kRefusedAtEnd; ++i) {
+    ASSERT_TRUE(bad_w->write(&bad));
+    std::this_thread::sleep_for(100ms);
+  }
+  bad_w->wait_for_acknowledgments({5, 0});
   std::string line;
   ASSERT_NO_FATAL_FAILURE(rig.Stop(&line));
+  const std::string log = ReadTextFile(rig.log);
+  EXPECT_EQ(SummaryField(line, "core_stalls"), 1.0) << log;
+  EXPECT_EQ(CountLinesWith(log, "stalled: no scan processed for "), 1) << log;
+  EXPECT_EQ(CountLinesWith(log,
+                           "core stall 1 still open at the stop: no scan processed for the "
+                           "last "),
+            1)
+      << log;
+  EXPECT_EQ(CountLinesWith(log, "scans processed again after"), 0) << log;
 
-  EXPECT_EQ(SummaryField(line, "scans_malformed"), 3.0);
+  EXPECT_EQ(SummaryField(line, "scans_malformed"), 3.0 + kRefusedAtEnd);
   EXPECT_EQ(SummaryField(line, "imu_malformed"), 1.0);
-  EXPECT_EQ(SummaryField(line, "scans_received"), kScans + 3.0);
+  EXPECT_EQ(SummaryField(line, "scans_received"), kScans + 3.0 + kRefusedAtEnd);
   EXPECT_EQ(SummaryField(line, "imu_received"), static_cast<double>(rig.seq));  // incl. NaN one
   EXPECT_EQ(SummaryField(line, "scans_processed"), kScans);
   EXPECT_EQ(SummaryField(line, "scans_dropped"), 0.0);

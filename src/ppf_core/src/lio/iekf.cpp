@@ -97,8 +97,28 @@ void GatherRows(const IekfOptions& options, int iter, bool reuse_rows,
   report->rows_per_provider.assign(providers.size(), 0);
   if (!reuse_rows) {
     rows->clear();
+    // Every provider's per-point loop in one team (ResidualProvider::PrepareRows): a team when
+    // any of them would open one for itself, with the most threads any of them is configured for.
+    std::vector<ResidualProvider::TeamWork> work(providers.size());
+    bool team = false;
+    int threads = 1;
     for (size_t i = 0; i < providers.size(); ++i) {
-      providers[i]->ComputeRows(T_world_lidar, rows);
+      work[i] = providers[i]->PrepareRows(T_world_lidar);
+      team = team || work[i].points > work[i].team_above;
+      if (work[i].points > 0) threads = std::max(threads, work[i].threads);
+    }
+    if (team) {
+#pragma omp parallel num_threads(threads)
+      for (size_t i = 0; i < providers.size(); ++i) {
+        if (work[i].points > 0) providers[i]->RowsInTeam();
+      }
+    } else {
+      for (size_t i = 0; i < providers.size(); ++i) {
+        if (work[i].points > 0) providers[i]->RowsInTeam();
+      }
+    }
+    for (size_t i = 0; i < providers.size(); ++i) {
+      providers[i]->FinishRows(T_world_lidar, rows);
       (*ends)[i] = rows->size();
     }
   }

@@ -126,83 +126,106 @@ void KnnResidualProvider::Prefetch(const ScanFrame& frame, const Eigen::Isometry
 
 void KnnResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
                                       std::vector<PointPlaneRow>* rows) {
-  if (frame_ == nullptr || frame_->map == nullptr || frame_->map->size() == 0) return;
+  const TeamWork work = PrepareRows(T_world_lidar);
+  if (work.points > work.team_above) {
+#pragma omp parallel num_threads(work.threads)
+    RowsInTeam();
+  }
+  FinishRows(T_world_lidar, rows);
+}
+
+ResidualProvider::TeamWork KnnResidualProvider::PrepareRows(
+    const Eigen::Isometry3d& T_world_lidar) {
+  team_ready_ = false;
+  if (frame_ == nullptr || frame_->map == nullptr || frame_->map->size() == 0) return {};
+  team_ready_ = true;
+  team_T_ = T_world_lidar;
+  tmp_.resize(indices_.size());
+  ok_.assign(indices_.size(), 0);
+  TeamWork work;
+  work.points = indices_.size();
+#ifdef _OPENMP
+  work.threads = options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
+#endif
+  return work;
+}
+
+void KnnResidualProvider::RowsInTeam() {
+  if (!team_ready_) return;
   const VoxelMap& map = *frame_->map;
+  const Eigen::Isometry3d& T_world_lidar = team_T_;
   const long n = static_cast<long>(indices_.size());
   std::vector<PointPlaneRow>& tmp = tmp_;
   std::vector<char>& ok = ok_;
-  tmp.resize(indices_.size());
-  ok.assign(indices_.size(), 0);
   const size_t k = static_cast<size_t>(std::max(3, options_.k));
   const bool cache = k <= kMaxCachedK && fits_.size() == indices_.size();
   const float keep2 =
       static_cast<float>(options_.search_again_distance * options_.search_again_distance);
   const bool keep = cache && keep_neighbours_ && options_.search_again_distance > 0.0;
-#ifdef _OPENMP
-  const int threads = options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
-#endif
-#pragma omp parallel num_threads(threads)
-  {
-    std::vector<Eigen::Vector3f> nn;
-#pragma omp for schedule(dynamic, 256)
-    for (long j = 0; j < n; ++j) {
-      const Eigen::Vector3d p_l =
-          frame_->points_lidar[indices_[static_cast<size_t>(j)]].cast<double>();
-      const Eigen::Vector3d p_w = T_world_lidar * p_l;
-      const Eigen::Vector3f q_w = p_w.cast<float>();
-      Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-      double d = 0.0;
-      CachedFit* fit = cache ? &fits_[static_cast<size_t>(j)] : nullptr;
-      // The last search's neighbours while the point stays near where it was made: a later
-      // iteration moves most points by far less than the map's point spacing.
-      if (keep && fit->searched && (q_w - fit->searched_at).squaredNorm() < keep2) {
-        if (!fit->found || !fit->ok) continue;
-        normal = fit->normal;
-        d = fit->d;
-      } else if (fit != nullptr && fit->searched && fit->searched_at == q_w) {
-        // Searched at this very point already (Prefetch, or an iteration that did not move):
-        // the search would find the same neighbours, the fit the same plane.
-        if (!fit->found || !fit->ok) continue;
+  std::vector<Eigen::Vector3f> nn;
+#pragma omp for schedule(dynamic, 256) nowait
+  for (long j = 0; j < n; ++j) {
+    const Eigen::Vector3d p_l =
+        frame_->points_lidar[indices_[static_cast<size_t>(j)]].cast<double>();
+    const Eigen::Vector3d p_w = T_world_lidar * p_l;
+    const Eigen::Vector3f q_w = p_w.cast<float>();
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+    double d = 0.0;
+    CachedFit* fit = cache ? &fits_[static_cast<size_t>(j)] : nullptr;
+    // The last search's neighbours while the point stays near where it was made: a later
+    // iteration moves most points by far less than the map's point spacing.
+    if (keep && fit->searched && (q_w - fit->searched_at).squaredNorm() < keep2) {
+      if (!fit->found || !fit->ok) continue;
+      normal = fit->normal;
+      d = fit->d;
+    } else if (fit != nullptr && fit->searched && fit->searched_at == q_w) {
+      // Searched at this very point already (Prefetch, or an iteration that did not move):
+      // the search would find the same neighbours, the fit the same plane.
+      if (!fit->found || !fit->ok) continue;
+      normal = fit->normal;
+      d = fit->d;
+    } else {
+      const bool found = map.GetClosest(q_w, k, options_.max_neighbor_distance, &nn) >= k;
+      if (fit != nullptr) {
+        fit->searched = true;
+        fit->found = found;
+        fit->searched_at = q_w;
+      }
+      if (!found) continue;
+      if (fit != nullptr && fit->count == nn.size() && std::equal(nn.begin(), nn.end(), fit->nn)) {
+        if (!fit->ok) continue;
         normal = fit->normal;
         d = fit->d;
       } else {
-        const bool found = map.GetClosest(q_w, k, options_.max_neighbor_distance, &nn) >= k;
+        const bool ok_fit =
+            FitPlane(nn, options_.plane_threshold, &normal, &d, options_.min_plane_spread);
         if (fit != nullptr) {
-          fit->searched = true;
-          fit->found = found;
-          fit->searched_at = q_w;
+          std::copy(nn.begin(), nn.end(), fit->nn);
+          fit->count = nn.size();
+          fit->ok = ok_fit;
+          fit->normal = normal;
+          fit->d = d;
         }
-        if (!found) continue;
-        if (fit != nullptr && fit->count == nn.size() &&
-            std::equal(nn.begin(), nn.end(), fit->nn)) {
-          if (!fit->ok) continue;
-          normal = fit->normal;
-          d = fit->d;
-        } else {
-          const bool ok_fit =
-              FitPlane(nn, options_.plane_threshold, &normal, &d, options_.min_plane_spread);
-          if (fit != nullptr) {
-            std::copy(nn.begin(), nn.end(), fit->nn);
-            fit->count = nn.size();
-            fit->ok = ok_fit;
-            fit->normal = normal;
-            fit->d = d;
-          }
-          if (!ok_fit) continue;
-        }
+        if (!ok_fit) continue;
       }
-      const double r = normal.dot(p_w) + d;
-      if (!(std::abs(r) < options_.max_residual)) continue;
-      PointPlaneRow& row = tmp[static_cast<size_t>(j)];
-      row.point_lidar = p_l;
-      row.normal_world = normal;
-      row.offset = d;
-      row.weight = 1.0;
-      ok[static_cast<size_t>(j)] = 1;
     }
+    const double r = normal.dot(p_w) + d;
+    if (!(std::abs(r) < options_.max_residual)) continue;
+    PointPlaneRow& row = tmp[static_cast<size_t>(j)];
+    row.point_lidar = p_l;
+    row.normal_world = normal;
+    row.offset = d;
+    row.weight = 1.0;
+    ok[static_cast<size_t>(j)] = 1;
   }
-  for (size_t j = 0; j < tmp.size(); ++j) {
-    if (ok[j]) rows->push_back(tmp[j]);
+}
+
+void KnnResidualProvider::FinishRows(const Eigen::Isometry3d& /*T_world_lidar*/,
+                                     std::vector<PointPlaneRow>* rows) {
+  if (!team_ready_) return;
+  team_ready_ = false;
+  for (size_t j = 0; j < tmp_.size(); ++j) {
+    if (ok_[j]) rows->push_back(tmp_[j]);
   }
 }
 

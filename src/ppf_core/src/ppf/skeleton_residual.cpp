@@ -14,67 +14,97 @@
 
 namespace ppf {
 
-namespace {
+// The matching of the skeleton points at one pose in three steps (ResidualProvider::PrepareRows):
+// Prepare on the calling thread, Point for each skeleton point on any thread (each writes only
+// its own slots), Collect on the calling thread. own_normals may be empty (no gate, no patches);
+// otherwise parallel to skeleton_indices. lookups, found: nullptr = not kept.
+struct SkeletonMatchLoop {
+  const std::vector<Eigen::Vector3f>& points_lidar;
+  const std::vector<int>& skeleton_indices;
+  const std::vector<Eigen::Vector3d>& own_normals;
+  double normal_gate_deg;
+  const Eigen::Isometry3d& T_world_lidar;
+  const std::vector<Plane>& window_world;
+  double eps;
+  const PlanePatchMap* patches;
+  bool window_fallback;
+  std::vector<PatchLookup>* lookups;
+  float keep_distance;
+  std::vector<const PlanePatchMap::Patch*>* found;
+  std::vector<Plane>* local;              // the window in the LiDAR frame (scratch)
+  std::vector<SkeletonMatch>* per_point;  // per skeleton point (scratch)
 
-// own_normals may be empty (no gate, no patches); otherwise parallel to skeleton_indices.
-void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
-                   const std::vector<int>& skeleton_indices,
-                   const std::vector<Eigen::Vector3d>& own_normals, double normal_gate_deg,
-                   const Eigen::Isometry3d& T_world_lidar, const std::vector<Plane>& window_world,
-                   double eps, std::vector<SkeletonMatch>* matches,
-                   const PlanePatchMap* patches = nullptr, bool window_fallback = true,
-                   int num_threads = 0, std::vector<PatchLookup>* lookups = nullptr,
-                   float keep_distance = 0.0f,
-                   std::vector<const PlanePatchMap::Patch*>* found = nullptr) {
-  matches->clear();
-  if (found != nullptr) found->assign(skeleton_indices.size(), nullptr);
-  const bool have_normals = own_normals.size() == skeleton_indices.size();
-  const bool use_patches = patches != nullptr && have_normals && patches->num_cells() > 0;
-  if ((window_world.empty() && !use_patches) || skeleton_indices.empty() || !(eps > 0.0)) return;
-  const bool gate = normal_gate_deg > 0.0 && have_normals;
-  // Patches are chosen by their own surface orientation; the window gate's angle, or 10 degrees.
-  const double patch_min_cos =
-      std::cos((normal_gate_deg > 0.0 ? std::min(normal_gate_deg, 90.0) : 10.0) * M_PI / 180.0);
-  const double min_cos = std::cos(std::min(normal_gate_deg, 90.0) * M_PI / 180.0);
-  // Fold the pose into the planes once: f_L = (T_lidar_world^-1)^T f_W (Theorem 1), so each point
-  // costs one dot product per plane and the signed distance is unchanged (rigid motion).
-  const Eigen::Isometry3d T_lidar_world = T_world_lidar.inverse();
-  const int np = static_cast<int>(window_world.size());
-  std::vector<Plane> local(np);
-  for (int j = 0; j < np; ++j) local[j] = TransformPlane(T_lidar_world, window_world[j]);
-
-  const long n = static_cast<long>(skeleton_indices.size());
-  const long num_points = static_cast<long>(points_lidar.size());
-  std::vector<SkeletonMatch> per_point(n);
-  if (lookups != nullptr && lookups->size() != skeleton_indices.size()) {
-    lookups->assign(skeleton_indices.size(), PatchLookup());
+  bool use_patches() const {
+    return patches != nullptr && own_normals.size() == skeleton_indices.size() &&
+           patches->num_cells() > 0;
   }
-  const float keep2 = lookups != nullptr ? keep_distance * keep_distance : 0.0f;
-  // Each point is a hash lookup and a few dot products: parallel only above a few thousand
-  // points, where it pays for the fork/join (docs/decisions.md, "Parallel skeleton matching");
-  // results are identical (each point writes its own slot).
-  // The configured thread count, as the other stages use: without it this loop ran on the
-  // OpenMP default (all cores) even in a run configured for one thread.
-#ifdef _OPENMP
-  const int threads = num_threads > 0 ? num_threads : omp_get_max_threads();
-#endif
-#pragma omp parallel for schedule(static) if (n > 2048) num_threads(threads)
-  for (long i = 0; i < n; ++i) {
+
+  // Sizes what Point writes; false: no point can match (then Point must not be called).
+  bool Prepare() const {
+    if (found != nullptr) found->assign(skeleton_indices.size(), nullptr);
+    if ((window_world.empty() && !use_patches()) || skeleton_indices.empty() || !(eps > 0.0)) {
+      per_point->clear();
+      return false;
+    }
+    // Fold the pose into the planes once: f_L = (T_lidar_world^-1)^T f_W (Theorem 1), so each
+    // point costs one dot product per plane and the signed distance is unchanged (rigid motion).
+    const Eigen::Isometry3d T_lidar_world = T_world_lidar.inverse();
+    local->resize(window_world.size());
+    for (size_t j = 0; j < window_world.size(); ++j) {
+      (*local)[j] = TransformPlane(T_lidar_world, window_world[j]);
+    }
+    per_point->resize(skeleton_indices.size());  // Point writes every slot
+    if (lookups != nullptr && lookups->size() != skeleton_indices.size()) {
+      lookups->assign(skeleton_indices.size(), PatchLookup());
+    }
+    return true;
+  }
+
+  // The constants of Point, made once per thread and call; the buffers' data as plain pointers,
+  // which the loop need not reload through their vectors after each store.
+  struct Constants {
+    bool use_patches, gate;
+    double patch_min_cos, min_cos;
+    float keep2;
+    const Plane* local;
+    int np;
+    SkeletonMatch* per_point;
+    PatchLookup* lookups;
+    const PlanePatchMap::Patch** found;
+  };
+  Constants MakeConstants() const {
+    Constants c;
+    c.use_patches = use_patches();
+    c.gate = normal_gate_deg > 0.0 && own_normals.size() == skeleton_indices.size();
+    // Patches are chosen by their own surface orientation; the window gate's angle, or 10 degrees.
+    c.patch_min_cos =
+        std::cos((normal_gate_deg > 0.0 ? std::min(normal_gate_deg, 90.0) : 10.0) * M_PI / 180.0);
+    c.min_cos = std::cos(std::min(normal_gate_deg, 90.0) * M_PI / 180.0);
+    c.keep2 = lookups != nullptr ? keep_distance * keep_distance : 0.0f;
+    c.local = local->data();
+    c.np = static_cast<int>(local->size());
+    c.per_point = per_point->data();
+    c.lookups = lookups != nullptr ? lookups->data() : nullptr;
+    c.found = found != nullptr ? found->data() : nullptr;
+    return c;
+  }
+
+  void Point(const Constants& c, long i) const {
     SkeletonMatch m;
     const int idx = skeleton_indices[i];
-    if (idx >= 0 && idx < num_points) {
+    if (idx >= 0 && idx < static_cast<int>(points_lidar.size())) {
       const Eigen::Vector3d p = points_lidar[idx].cast<double>();
-      if (use_patches) {
+      if (c.use_patches) {
         const Eigen::Vector3d p_w = T_world_lidar * p;
         const Eigen::Vector3f q_w = p_w.cast<float>();
-        PatchLookup* last = lookups != nullptr ? &(*lookups)[static_cast<size_t>(i)] : nullptr;
+        PatchLookup* last = c.lookups != nullptr ? &c.lookups[i] : nullptr;
         const PlanePatchMap::Patch* patch;
         // The last lookup's patch while the point stays near where it was made (as the kNN rows
         // keep their neighbours): a later iteration moves it by millimetres in a 2 m cell.
-        if (last != nullptr && last->done && (q_w - last->at).squaredNorm() < keep2) {
+        if (last != nullptr && last->done && (q_w - last->at).squaredNorm() < c.keep2) {
           patch = last->patch;
         } else {
-          patch = patches->Find(p_w, T_world_lidar.linear() * own_normals[i], patch_min_cos);
+          patch = patches->Find(p_w, T_world_lidar.linear() * own_normals[i], c.patch_min_cos);
           if (last != nullptr) {
             last->done = true;
             last->at = q_w;
@@ -82,26 +112,26 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
           }
         }
         if (patch != nullptr) {
-          if (found != nullptr) (*found)[static_cast<size_t>(i)] = patch;
+          if (c.found != nullptr) c.found[i] = patch;
           const double s = patch->plane.SignedDistance(p_w);
           if (std::abs(s) < eps) {
             m.point_index = idx;
             m.signed_distance = s;
             m.plane = patch->plane;
           }
-          per_point[i] = m;
-          continue;  // a patch of its own surface exists: the window is not consulted
+          c.per_point[i] = m;
+          return;  // a patch of its own surface exists: the window is not consulted
         }
         if (!window_fallback) {  // no patch of its surface here yet: no residual
-          per_point[i] = m;
-          continue;
+          c.per_point[i] = m;
+          return;
         }
       }
       double best = std::numeric_limits<double>::infinity();
       int best_plane = -1;
-      for (int j = 0; j < np; ++j) {
-        if (gate && std::abs(own_normals[i].dot(local[j].n)) < min_cos) continue;
-        const double s = local[j].SignedDistance(p);
+      for (int j = 0; j < c.np; ++j) {
+        if (c.gate && std::abs(own_normals[i].dot(c.local[j].n)) < c.min_cos) continue;
+        const double s = c.local[j].SignedDistance(p);
         if (std::abs(s) < std::abs(best)) {
           best = s;
           best_plane = j;
@@ -114,11 +144,48 @@ void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
         m.plane = window_world[best_plane];
       }
     }
-    per_point[i] = m;
+    c.per_point[i] = m;
   }
-  for (const SkeletonMatch& m : per_point) {
-    if (m.point_index >= 0) matches->push_back(m);
+
+  // Every point of the team's share (an orphaned worksharing loop: alone outside a team).
+  void Share() const {
+    const Constants c = MakeConstants();
+    const long n = static_cast<long>(skeleton_indices.size());
+#pragma omp for schedule(dynamic, 256) nowait
+    for (long i = 0; i < n; ++i) Point(c, i);
   }
+
+  void Collect(std::vector<SkeletonMatch>* matches) const {
+    matches->clear();
+    for (const SkeletonMatch& m : *per_point) {
+      if (m.point_index >= 0) matches->push_back(m);
+    }
+  }
+};
+
+namespace {
+
+// Each point is a hash lookup and a few dot products: a team of its own only above a few
+// thousand points, where it pays for the fork/join (docs/decisions.md, "Parallel skeleton
+// matching"); results are identical (each point writes its own slot).
+constexpr size_t kMatchTeamAbove = 2048;
+
+void MatchSkeleton(const std::vector<Eigen::Vector3f>& points_lidar,
+                   const std::vector<int>& skeleton_indices,
+                   const std::vector<Eigen::Vector3d>& own_normals, double normal_gate_deg,
+                   const Eigen::Isometry3d& T_world_lidar, const std::vector<Plane>& window_world,
+                   double eps, std::vector<SkeletonMatch>* matches) {
+  std::vector<Plane> local;
+  std::vector<SkeletonMatch> per_point;
+  const SkeletonMatchLoop loop{points_lidar,  skeleton_indices, own_normals, normal_gate_deg,
+                               T_world_lidar, window_world,     eps,         nullptr,
+                               true,          nullptr,          0.0f,        nullptr,
+                               &local,        &per_point};
+  if (loop.Prepare()) {
+#pragma omp parallel if (skeleton_indices.size() > kMatchTeamAbove)
+    loop.Share();
+  }
+  loop.Collect(matches);
 }
 
 }  // namespace
@@ -156,6 +223,7 @@ void SkeletonResidualProvider::Reset() {
   matches_.clear();
   lookups_.clear();
   found_.clear();
+  team_ready_ = false;
 }
 
 void SkeletonResidualProvider::BeginScan(const ScanFrame& frame) {
@@ -223,13 +291,61 @@ void SkeletonResidualProvider::KeepRowsPerPlane() {
   skeleton_indices_.resize(kept);
 }
 
+SkeletonMatchLoop SkeletonResidualProvider::Loop() {
+  return SkeletonMatchLoop{frame_->points_lidar,
+                           skeleton_indices_,
+                           own_normals_,
+                           normal_gate_deg_,
+                           team_T_,
+                           planes_world_,
+                           eps_,
+                           patches_,
+                           window_fallback_,
+                           keep_distance_ > 0.0 ? &lookups_ : nullptr,
+                           static_cast<float>(keep_distance_),
+                           &found_,
+                           &local_planes_,
+                           &per_point_};
+}
+
 void SkeletonResidualProvider::ComputeRows(const Eigen::Isometry3d& T_world_lidar,
                                            std::vector<PointPlaneRow>* rows) {
-  if (frame_ == nullptr) return;
-  MatchSkeleton(frame_->points_lidar, skeleton_indices_, own_normals_, normal_gate_deg_,
-                T_world_lidar, planes_world_, eps_, &matches_, patches_, window_fallback_,
-                num_threads_, keep_distance_ > 0.0 ? &lookups_ : nullptr,
-                static_cast<float>(keep_distance_), &found_);
+  const TeamWork work = PrepareRows(T_world_lidar);
+  if (work.points > work.team_above) {
+#pragma omp parallel num_threads(work.threads)
+    RowsInTeam();
+  } else if (work.points > 0) {
+    RowsInTeam();
+  }
+  FinishRows(T_world_lidar, rows);
+}
+
+ResidualProvider::TeamWork SkeletonResidualProvider::PrepareRows(
+    const Eigen::Isometry3d& T_world_lidar) {
+  team_ready_ = false;
+  if (frame_ == nullptr) return {};
+  team_ready_ = true;
+  team_T_ = T_world_lidar;
+  TeamWork work;
+  if (Loop().Prepare()) work.points = skeleton_indices_.size();
+  work.team_above = kMatchTeamAbove;
+  // The configured thread count, as the other stages use: without it this loop ran on the
+  // OpenMP default (all cores) even in a run configured for one thread.
+#ifdef _OPENMP
+  work.threads = num_threads_ > 0 ? num_threads_ : omp_get_max_threads();
+#endif
+  return work;
+}
+
+void SkeletonResidualProvider::RowsInTeam() {
+  if (team_ready_ && !per_point_.empty()) Loop().Share();
+}
+
+void SkeletonResidualProvider::FinishRows(const Eigen::Isometry3d& /*T_world_lidar*/,
+                                          std::vector<PointPlaneRow>* rows) {
+  if (!team_ready_) return;
+  team_ready_ = false;
+  Loop().Collect(&matches_);
   rows->reserve(rows->size() + matches_.size());
   for (const SkeletonMatch& m : matches_) {
     PointPlaneRow row;

@@ -214,5 +214,85 @@ TEST(PpfSkeletonResidual, RowsPerPlaneKeepTheSpreadAndTheInformation) {
   EXPECT_EQ(rows.size(), frame.points_lidar.size());
 }
 
+// The IEKF runs its providers' per-point loops in one team (ResidualProvider::PrepareRows): two
+// providers sharing a team of two threads give each the rows its own ComputeRows gives, bit for
+// bit and in order, also with matches kept between calls and with a row cap.
+TEST(PpfSkeletonResidual, RowsOfASharedTeamAreThoseOfComputeRows) {
+  PpfConfig cfg;
+  SkeletonWindow window(cfg);
+  FittedPlane ground, wall;
+  ground.plane = Plane{Eigen::Vector3d::UnitZ(), 1.5};
+  ground.centroid = Eigen::Vector3d(5, 0, -1.5);
+  ground.num_inliers = 3000;
+  wall.plane = Plane{-Eigen::Vector3d::UnitX(), 6.0};
+  wall.centroid = Eigen::Vector3d(6, 0, 1);
+  wall.num_inliers = 600;
+  window.Update({ground, wall}, Eigen::Isometry3d::Identity());
+  ScanFrame frame;
+  PrefitResult prefit;
+  prefit.planes = {ground, wall};
+  // Enough points for the team to share out in chunks; every seventh 0.3 m off its plane (no row).
+  for (int i = 0; i < 3000; ++i) {
+    const double a = 2.0 * M_PI * (i % 100) / 100.0, r = 2.0 + 8.0 * (i / 100) / 30.0;
+    const double off = i % 7 == 0 ? 0.3 : 0.01 * (i % 3);
+    frame.points_lidar.emplace_back(r * std::cos(a), r * std::sin(a), -1.5 + off);
+    prefit.skeleton_plane.push_back(0);
+  }
+  for (int i = 0; i < 600; ++i) {
+    frame.points_lidar.emplace_back(6.0f - (i % 7 == 0 ? 0.3f : 0.0f), -3.0f + 0.1f * (i % 60),
+                                    -1.0f + 0.3f * (i / 60));
+    prefit.skeleton_plane.push_back(1);
+  }
+  for (size_t k = 0; k < frame.points_lidar.size(); ++k) {
+    prefit.skeleton_indices.push_back(static_cast<int>(k));
+  }
+  frame.labels.assign(frame.points_lidar.size(), PointLabel::kSkeleton);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(0.02, -0.01, 0.03);
+  T.linear() = Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+
+  SkeletonResidualProvider a(&window, cfg.point_to_plane_thresh), b(&window, 0.1);
+  a.SetPrefitSource(&prefit, cfg.skeleton_normal_gate_deg);
+  b.SetPrefitSource(&prefit, cfg.skeleton_normal_gate_deg);
+  b.SetRowsPerPlane(500);
+  a.SetNumThreads(2);
+  b.SetNumThreads(2);
+  // What each gives alone.
+  std::vector<PointPlaneRow> want_a, want_b;
+  a.BeginScan(frame);
+  b.BeginScan(frame);
+  a.ComputeRows(T, &want_a);
+  b.ComputeRows(T, &want_b);
+  ASSERT_GT(want_a.size(), 2500u);
+  ASSERT_LT(want_a.size(), frame.points_lidar.size());
+  ASSERT_GT(want_b.size(), 700u);  // of the 1000 kept, those off their plane give none
+  ASSERT_LT(want_b.size(), 1000u);
+
+  std::vector<PointPlaneRow> got;
+  a.BeginScan(frame);
+  b.BeginScan(frame);
+  const ResidualProvider::TeamWork wa = a.PrepareRows(T), wb = b.PrepareRows(T);
+  ASSERT_EQ(wa.points, frame.points_lidar.size());
+  ASSERT_EQ(wb.points, 1000u);
+#pragma omp parallel num_threads(2)
+  {
+    a.RowsInTeam();
+    b.RowsInTeam();
+  }
+  a.FinishRows(T, &got);
+  const size_t ends_a = got.size();
+  b.FinishRows(T, &got);
+  ASSERT_EQ(ends_a, want_a.size());
+  ASSERT_EQ(got.size(), want_a.size() + want_b.size());
+  for (size_t k = 0; k < got.size(); ++k) {
+    const PointPlaneRow& w = k < ends_a ? want_a[k] : want_b[k - ends_a];
+    ASSERT_TRUE(got[k].point_lidar == w.point_lidar) << k;
+    ASSERT_TRUE(got[k].normal_world == w.normal_world) << k;
+    ASSERT_EQ(got[k].offset, w.offset) << k;
+    ASSERT_EQ(got[k].weight, w.weight) << k;
+  }
+  EXPECT_EQ(a.last_matches().size(), want_a.size());
+}
+
 }  // namespace
 }  // namespace ppf

@@ -37,6 +37,10 @@ class KnnResidualProvider : public ResidualProvider {
   void BeginScan(const ScanFrame& frame) override;
   void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
                    std::vector<PointPlaneRow>* rows) override;
+  TeamWork PrepareRows(const Eigen::Isometry3d& T_world_lidar) override;
+  void RowsInTeam() override;
+  void FinishRows(const Eigen::Isometry3d& T_world_lidar,
+                  std::vector<PointPlaneRow>* rows) override;
   // What the last ComputeRows of this scan found for each of its points (the scattered points
   // within reach): false if nothing was searched since BeginScan, or k is too large to keep.
   bool Associations(std::vector<AssociatedPoint>* out) const;
@@ -72,6 +76,9 @@ class KnnResidualProvider : public ResidualProvider {
   // Per-call buffers kept between the iterations and scans: one slot per indexed point.
   std::vector<PointPlaneRow> tmp_;
   std::vector<char> ok_;
+  // The pose of the rows being computed, between PrepareRows and FinishRows.
+  bool team_ready_ = false;
+  Eigen::Isometry3d team_T_ = Eigen::Isometry3d::Identity();
   // The last plane fitted for each indexed point and the neighbours it was fitted to. Between the
   // filter's iterations the pose moves little and most points find the same k neighbours: the
   // same input gives the same plane, so the fit is reused instead of solved again.

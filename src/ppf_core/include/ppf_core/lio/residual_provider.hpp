@@ -65,6 +65,27 @@ class ResidualProvider {
   // Append this provider's rows for the pose estimate T_world_lidar.
   virtual void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
                            std::vector<PointPlaneRow>* rows) = 0;
+
+  // ComputeRows in three steps, so that the IEKF runs the per-point loops of all its providers
+  // in one OpenMP team per iteration: a passive worker sleeps between regions, and each team
+  // start waits for its wake-up (docs/decisions.md, "Parallel skeleton matching"). PrepareRows,
+  // on the calling thread, sizes everything the loop writes and says what it has for a team;
+  // RowsInTeam is called by every thread of that team (or by the calling thread alone) and shares
+  // the points out with an orphaned `omp for nowait`, each point writing only its own slot;
+  // FinishRows, on the calling thread after the team has ended, appends the rows in point order.
+  // The rows are those of ComputeRows, bit for bit. The defaults leave it all to ComputeRows in
+  // FinishRows.
+  struct TeamWork {
+    size_t points = 0;      // iterations RowsInTeam shares out (0: it has nothing to do)
+    size_t team_above = 0;  // a team pays for itself above this many points
+    int threads = 1;        // the provider's configured thread count, resolved
+  };
+  virtual TeamWork PrepareRows(const Eigen::Isometry3d& /*T_world_lidar*/) { return {}; }
+  virtual void RowsInTeam() {}
+  virtual void FinishRows(const Eigen::Isometry3d& T_world_lidar,
+                          std::vector<PointPlaneRow>* rows) {
+    ComputeRows(T_world_lidar, rows);
+  }
   virtual void EndScan(const Eigen::Isometry3d& /*T_world_lidar*/) {}
   virtual void Reset() {}
 };

@@ -61,6 +61,8 @@ void ComputeSkeletonMatches(const std::vector<Eigen::Vector3f>& points_lidar,
                             const std::vector<Plane>& window_world, double eps,
                             std::vector<SkeletonMatch>* matches);
 
+struct SkeletonMatchLoop;  // skeleton_residual.cpp
+
 // Residual rows of the skeleton points of a ScanFrame (labels == kSkeleton) against a window.
 // The window is read at BeginScan (F from the previous scan, as in the reference pipeline; this
 // scan's planes enter the window only after the update, see SkeletonTracker::Finish).
@@ -94,6 +96,10 @@ class SkeletonResidualProvider : public ResidualProvider {
   void BeginScan(const ScanFrame& frame) override;
   void ComputeRows(const Eigen::Isometry3d& T_world_lidar,
                    std::vector<PointPlaneRow>* rows) override;
+  TeamWork PrepareRows(const Eigen::Isometry3d& T_world_lidar) override;
+  void RowsInTeam() override;
+  void FinishRows(const Eigen::Isometry3d& T_world_lidar,
+                  std::vector<PointPlaneRow>* rows) override;
   void Reset() override;
 
   // Matches of the last ComputeRows call (diagnostics and tests).
@@ -108,6 +114,8 @@ class SkeletonResidualProvider : public ResidualProvider {
 
  private:
   void KeepRowsPerPlane();
+  // The matching loop over this provider's state at team_T_ (skeleton_residual.cpp).
+  SkeletonMatchLoop Loop();
 
   const SkeletonWindow* window_;
   double eps_;
@@ -129,6 +137,12 @@ class SkeletonResidualProvider : public ResidualProvider {
   std::vector<size_t> per_plane_count_, per_plane_rank_;  // KeepRowsPerPlane's scratch
   std::vector<double> row_weights_;  // per scan point, this scan; empty: every row weighs 1
   int num_threads_ = 0;
+  // The pose of the rows being computed, between PrepareRows and FinishRows, and the loop's
+  // scratch.
+  bool team_ready_ = false;
+  Eigen::Isometry3d team_T_ = Eigen::Isometry3d::Identity();
+  std::vector<Plane> local_planes_;
+  std::vector<SkeletonMatch> per_point_;
 };
 
 }  // namespace ppf

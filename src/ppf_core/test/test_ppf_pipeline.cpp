@@ -131,8 +131,9 @@ TEST(PpfPipeline, MapIsSmallerThanKnnMode) {
   EXPECT_LT(ppf_map, knn_map);
 }
 
-// On two threads the pre-fit has the kNN searches beside it (KnnResidualProvider::Prefetch);
-// the trajectory is bit for bit the one thread's.
+// On two threads the pre-fit has the kNN searches beside it (KnnResidualProvider::Prefetch) and
+// the rows of each IEKF iteration come from one team; the trajectory, the kNN map and the
+// skeleton's window and patches are bit for bit the one thread's.
 TEST(PpfPipeline, TwoThreadsGiveTheOneThreadTrajectoryBitForBit) {
   Config config;
   config.mode = Mode::kPpf;
@@ -144,6 +145,18 @@ TEST(PpfPipeline, TwoThreadsGiveTheOneThreadTrajectoryBitForBit) {
   for (size_t i = 0; i < one.est.size(); ++i) {
     EXPECT_EQ(one.est[i].stamp_s, two.est[i].stamp_s);
     EXPECT_TRUE(one.est[i].T.matrix() == two.est[i].T.matrix()) << "scan " << i;
+  }
+  ASSERT_EQ(one.results.size(), two.results.size());
+  for (size_t i = 0; i < one.results.size(); ++i) {
+    const ScanResult &a = one.results[i], &b = two.results[i];
+    EXPECT_EQ(a.map_inserted, b.map_inserted) << "scan " << i;
+    EXPECT_EQ(a.map_size, b.map_size) << "scan " << i;
+    EXPECT_EQ(a.skeleton_patches, b.skeleton_patches) << "scan " << i;
+    ASSERT_EQ(a.skeleton_planes.size(), b.skeleton_planes.size()) << "scan " << i;
+    for (size_t k = 0; k < a.skeleton_planes.size(); ++k) {
+      EXPECT_EQ(a.skeleton_planes[k].track_id, b.skeleton_planes[k].track_id) << "scan " << i;
+      EXPECT_TRUE(a.skeleton_planes[k].plane.n == b.skeleton_planes[k].plane.n) << "scan " << i;
+    }
   }
 }
 

@@ -113,18 +113,25 @@ void PlanePrefitter::KeepOutliers(std::vector<int>* discarded) {
   constexpr uint8_t kSemi = static_cast<uint8_t>(SandwichClass::kSemi);
   constexpr uint8_t kOutlier = static_cast<uint8_t>(SandwichClass::kOutlier);
   const size_t n = std::min(labels_.size(), remaining_.size());
-  next_points_.clear();
-  next_index_.clear();
-  next_points_.reserve(n - std::min(n, split_.strict.size()));
-  next_index_.reserve(n - std::min(n, split_.strict.size()));
+  // Every point is copied and the count advances past the outliers only (no branch on the
+  // common label); local pointers, which the discarded list's push_back does not make the loop
+  // reload.
+  next_points_.resize(n);
+  next_index_.resize(n);
+  const uint8_t* label = labels_.data();
+  const Eigen::Vector3f* point = remaining_.data();
+  const int* index = remaining_index_.data();
+  Eigen::Vector3f* next_point = next_points_.data();
+  int* next_index = next_index_.data();
+  size_t k = 0;
   for (size_t pos = 0; pos < n; ++pos) {
-    if (labels_[pos] == kSemi) {
-      discarded->push_back(remaining_index_[pos]);
-    } else if (labels_[pos] == kOutlier) {
-      next_points_.push_back(remaining_[pos]);
-      next_index_.push_back(remaining_index_[pos]);
-    }
+    next_point[k] = point[pos];
+    next_index[k] = index[pos];
+    k += label[pos] == kOutlier ? 1 : 0;
+    if (label[pos] == kSemi) discarded->push_back(index[pos]);
   }
+  next_points_.resize(k);
+  next_index_.resize(k);
   remaining_.swap(next_points_);
   remaining_index_.swap(next_index_);
 }

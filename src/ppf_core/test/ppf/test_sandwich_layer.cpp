@@ -30,6 +30,48 @@ TEST(PpfSandwich, ClassifiesTheThreeBands) {
   EXPECT_EQ(split.outliers, (std::vector<int>{2}));
 }
 
+// LabelSandwich's labels and strict list, on a cloud below and one above the size where the
+// labelling runs in blocks on a team: every point as the per-point float test labels it (a NaN
+// distance an outlier), the strict positions ascending, points exactly on both band edges included.
+TEST(PpfSandwich, LabelsEveryPointAsThePointTestInOrder) {
+  const Plane plane{Eigen::Vector3d(0.36, -0.48, 0.8), -1.25};
+  const double delta = 0.2, semi_factor = 2.0;
+  const float nx = 0.36f, ny = -0.48f, nz = 0.8f, d = -1.25f;
+  const float strict = 0.2f, semi = 0.4f;
+  for (const size_t size : {size_t{10007}, size_t{70001}}) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(-3.0f, 3.0f);
+    std::vector<Eigen::Vector3f> pts(size);
+    for (auto& p : pts) p = Eigen::Vector3f(u(rng), u(rng), u(rng) * 0.2f + 1.5f);
+    // On the edges: distances of exactly +-delta and +-semi_factor * delta along the normal
+    // from a point of the plane (what the float expression makes of them decides).
+    const Eigen::Vector3f on(0.0f, 0.0f, 1.5625f), n(nx, ny, nz);
+    pts[3] = on + strict * n;
+    pts[4] = on - strict * n;
+    pts[5] = on + semi * n;
+    pts[6] = on - semi * n;
+    pts[size - 1] = Eigen::Vector3f(std::nanf(""), 0.0f, 0.0f);
+    std::vector<uint8_t> labels;
+    SandwichSplit split;
+    LabelSandwich(pts, plane, delta, semi_factor, &labels, &split);
+    ASSERT_EQ(labels.size(), size);
+    std::vector<int> expected_strict;
+    size_t semis = 0;
+    for (size_t i = 0; i < size; ++i) {
+      const float a = std::abs(nx * pts[i].x() + ny * pts[i].y() + nz * pts[i].z() + d);
+      const uint8_t want = a < strict ? 0 : (a < semi ? 1 : 2);
+      ASSERT_EQ(labels[i], want) << "point " << i << " of " << size;
+      if (want == 0) expected_strict.push_back(static_cast<int>(i));
+      semis += want == 1 ? 1 : 0;
+    }
+    EXPECT_EQ(labels[size - 1], 2);
+    EXPECT_EQ(split.strict, expected_strict);
+    // The cloud straddles the plane: all three classes occur.
+    EXPECT_GT(expected_strict.size(), size / 20);
+    EXPECT_GT(semis, size / 20);
+  }
+}
+
 // Paper Fig. 5: flat ground (already in the window F) and a slope rising from it at 5 degrees,
 // seen for the first time. Returns the number of skeleton points of the newly fitted slope plane
 // that the nearest-plane search (Eq. 10) matches to the ground plane (false matches).

@@ -15,6 +15,11 @@ namespace {
 // scans).
 constexpr long kParallelPoints = 32768;
 
+// The band kept between passes (Near), beyond delta, in multiples of delta: wider keeps more
+// points per pass and lets a plane move farther before a pass over all points is needed. Only
+// the cost depends on it, never the result.
+constexpr double kNearWidthInDeltas = 4.0;
+
 // First and second moments of a point subset, about a reference point to avoid cancellation.
 struct Moments {
   int count = 0;
@@ -38,6 +43,16 @@ PPF_IPCA_CLONES void BandMask(const Eigen::Vector3f* points, long n, double nx, 
   for (long i = 0; i < n; ++i) {
     const double px = points[i].x(), py = points[i].y(), pz = points[i].z();
     in[i] = std::abs(nx * px + ny * py + nz * pz + pd) < delta ? 1 : 0;
+  }
+}
+
+// in[i] = 2 if |n.p_i + d| < delta (BandMask's test), 1 if only < wide, 0 otherwise.
+PPF_IPCA_CLONES void BandLevels(const Eigen::Vector3f* points, long n, double nx, double ny,
+                                double nz, double pd, double delta, double wide, uint8_t* in) {
+  for (long i = 0; i < n; ++i) {
+    const double px = points[i].x(), py = points[i].y(), pz = points[i].z();
+    const double a = std::abs(nx * px + ny * py + nz * pz + pd);
+    in[i] = static_cast<uint8_t>(static_cast<int>(a < delta) + static_cast<int>(a < wide));
   }
 }
 
@@ -87,6 +102,80 @@ Moments Accumulate(const std::vector<Eigen::Vector3f>& points, const Plane* plan
   return m;
 }
 
+// The points within delta + width of a plane, kept between the passes of one refinement
+// (RefinePlaneIpca): a later plane that moved less than `width` anywhere within the points' reach
+// has no strict inlier outside them, so its pass visits these only, copied in input order: it sums
+// the same points in the same order as a pass over all points.
+struct Near {
+  std::vector<Eigen::Vector3f> points;
+  Plane plane;  // the plane they lie near
+  double width = 0.0;
+};
+
+// Moments of the points with in[i] == level, summed in input order.
+Moments SumLevel(const std::vector<Eigen::Vector3f>& points, const uint8_t* in, uint8_t level,
+                 const Eigen::Vector3d& ref) {
+  const long n = static_cast<long>(points.size());
+  int count = 0;
+  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
+  for (long i = 0; i < n; ++i) {
+    if (in[i] != level) continue;
+    const double x = static_cast<double>(points[i].x()) - ref.x(),
+                 y = static_cast<double>(points[i].y()) - ref.y(),
+                 z = static_cast<double>(points[i].z()) - ref.z();
+    ++count;
+    sx += x, sy += y, sz += z;
+    sxx += x * x, sxy += x * y, sxz += x * z, syy += y * y, syz += y * z, szz += z * z;
+  }
+  Moments m;
+  m.count = count;
+  m.sum << sx, sy, sz;
+  m.outer << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
+  return m;
+}
+
+// Accumulate over all points (the serial path), also collecting `near` around `plane`.
+Moments AccumulateAndCollect(const std::vector<Eigen::Vector3f>& points, const Plane& plane,
+                             double delta, const Eigen::Vector3d& ref, double width,
+                             std::vector<uint8_t>* in, Near* near) {
+  const long n = static_cast<long>(points.size());
+  in->resize(static_cast<size_t>(n));
+  BandLevels(points.data(), n, plane.n.x(), plane.n.y(), plane.n.z(), plane.d, delta, delta + width,
+             in->data());
+  const Moments m = SumLevel(points, in->data(), 2, ref);
+  near->points.resize(static_cast<size_t>(n));
+  Eigen::Vector3f* out = near->points.data();
+  const uint8_t* level = in->data();
+  size_t k = 0;
+  for (long i = 0; i < n; ++i) {
+    out[k] = points[i];
+    k += level[i] != 0 ? 1 : 0;
+  }
+  near->points.resize(k);
+  near->plane = plane;
+  near->width = width;
+  return m;
+}
+
+// Accumulate over `near`'s points only, with BandMask's test.
+Moments AccumulateNear(const Near& near, const Plane& plane, double delta,
+                       const Eigen::Vector3d& ref, std::vector<uint8_t>* in) {
+  const long n = static_cast<long>(near.points.size());
+  in->resize(static_cast<size_t>(n));
+  BandMask(near.points.data(), n, plane.n.x(), plane.n.y(), plane.n.z(), plane.d, delta,
+           in->data());
+  return SumLevel(near.points, in->data(), 1, ref);
+}
+
+// Whether `plane` moved less than near.width from near.plane at every point within max_norm of
+// the origin: |(n - n0).p + (d - d0)| <= |n - n0| max_norm + |d - d0|, with a margin far above
+// the rounding of the distances.
+bool NearHolds(const Near& near, const Plane& plane, double max_norm) {
+  const double moved =
+      (plane.n - near.plane.n).norm() * max_norm + std::abs(plane.d - near.plane.d);
+  return moved + 1e-6 < near.width;
+}
+
 // Plane of least squared orthogonal distance for the moments; empty if degenerate (the two
 // smallest eigenvalues are both ~0: the points lie on a line or coincide).
 std::optional<Plane> PlaneFromMoments(const Moments& m, const Eigen::Vector3d& ref) {
@@ -112,14 +201,31 @@ bool IpcaCountsOscillate(const std::vector<int>& c) {
 }
 
 IpcaResult RefinePlaneIpca(const std::vector<Eigen::Vector3f>& points, const Plane& initial,
-                           double delta, int max_iterations, int min_inliers) {
+                           double delta, int max_iterations, int min_inliers, double max_norm) {
   IpcaResult result;
   result.plane = initial;
   const int least = std::max(3, min_inliers);
   if (points.empty()) return result;
   const Eigen::Vector3d ref = points.front().cast<double>();
 
-  Moments m = Accumulate(points, &initial, delta, ref);
+  // With a bound on the points' reach, a pass over all points also keeps those near its plane,
+  // and a later plane close to that one sums only them (same sums); the parallel path (full
+  // scans) always passes over all points.
+  const bool use_near = max_norm > 0.0 && std::isfinite(max_norm) &&
+                        static_cast<long>(points.size()) <= kParallelPoints;
+  const double near_width = kNearWidthInDeltas * delta;
+  Near near;
+  std::vector<uint8_t> in;
+  const auto pass = [&](const Plane& plane) {
+    if (!use_near) return Accumulate(points, &plane, delta, ref);
+    // near.width is set by the first collecting pass.
+    if (near.width > 0.0 && NearHolds(near, plane, max_norm)) {
+      return AccumulateNear(near, plane, delta, ref, &in);
+    }
+    return AccumulateAndCollect(points, plane, delta, ref, near_width, &in, &near);
+  };
+
+  Moments m = pass(initial);
   result.num_inliers = m.count;
   result.inlier_counts.push_back(m.count);
   for (int it = 0; it < max_iterations; ++it) {
@@ -129,7 +235,7 @@ IpcaResult RefinePlaneIpca(const std::vector<Eigen::Vector3f>& points, const Pla
     // Keep the orientation of the initial plane: guesses and tracks compare signed offsets.
     if (next->n.dot(result.plane.n) < 0.0) *next = next->Flipped();
     const int previous = m.count;
-    m = Accumulate(points, &*next, delta, ref);
+    m = pass(*next);
     result.plane = *next;
     result.num_inliers = m.count;
     result.iterations = it + 1;

@@ -142,14 +142,19 @@ void PlanePrefitter::TakeFinite(const std::vector<Eigen::Vector3f>& points,
   remaining_index_.clear();
   remaining_.reserve(points.size());
   remaining_index_.reserve(points.size());
+  float max_norm2 = 0.0f;
   for (size_t i = 0; i < points.size(); ++i) {
     if (points[i].allFinite()) {
       remaining_.push_back(points[i]);
       remaining_index_.push_back(static_cast<int>(i));
+      max_norm2 = std::max(max_norm2, points[i].squaredNorm());
     } else {
       result->discarded_indices.push_back(static_cast<int>(i));
     }
   }
+  // Above the largest |p| of the working set, whatever it shrinks to (the float sum's rounding
+  // covered by the factor).
+  max_norm_ = std::sqrt(static_cast<double>(max_norm2)) * (1.0 + 1e-5);
 }
 
 bool PlanePrefitter::ShouldStop(double min_remaining, PrefitResult* result) const {
@@ -176,7 +181,7 @@ bool PlanePrefitter::FitGuesses(const std::vector<PlaneGuess>& guesses, int leas
     // Cheap check first: most wrong guesses die here without any PCA.
     if (CountPlaneInliers(remaining_, guess.plane, config_.delta) < least) continue;
     const IpcaResult refined = RefinePlaneIpca(remaining_, guess.plane, config_.delta,
-                                               config_.ipca_iterations_guess, least);
+                                               config_.ipca_iterations_guess, least, max_norm_);
     if (!refined.success) continue;
     // A rejected guess leaves its points for RANSAC, like any other failed guess.
     if (!SplitAndCheckShape(refined.plane)) {
@@ -206,8 +211,8 @@ void PlanePrefitter::FitNewPlanes(int least, double min_remaining, PrefitResult*
       result->stop = PrefitStop::kRansacFailed;
       return;
     }
-    const IpcaResult refined =
-        RefinePlaneIpca(remaining_, fit.plane, config_.delta, config_.ipca_iterations_new, least);
+    const IpcaResult refined = RefinePlaneIpca(remaining_, fit.plane, config_.delta,
+                                               config_.ipca_iterations_new, least, max_norm_);
     if (refined.success) {
       if (SplitAndCheckShape(refined.plane)) {
         Accept(refined.plane, false, -1, refined.iterations, result);

@@ -1,7 +1,10 @@
+#include <algorithm>
+#include <cmath>
 #include <random>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "ppf_core/ppf/ipca.hpp"
 #include "ppf_test_scenes.hpp"
@@ -74,6 +77,47 @@ TEST(PpfIpca, StopsWhenInlierCountStopsChanging) {
   EXPECT_EQ(r.iterations, 1);  // every point is already an inlier: one solve confirms it
   EXPECT_EQ(r.num_inliers, 1000);
   ASSERT_EQ(r.inlier_counts.size(), 2u);
+}
+
+// With a bound on the points' reach, passes after a full one visit only the points near its
+// plane while the plane stays close: the refinement must be the one over all points, bit for bit,
+// for starts that converge within the kept band (a guess) and for starts whose first solve moves
+// the plane far beyond it (a coarse 3-point hypothesis, a plane 0.5 m off).
+TEST(PpfIpca, PassesOverThePointsNearTheLastPlaneGiveTheFullResult) {
+  const test::CornerScene scene = test::MakeCornerScene(0.03, 400, 31);
+  const std::vector<Eigen::Vector3f>& pts = scene.points;
+  float max_norm2 = 0.0f;
+  for (const auto& p : pts) max_norm2 = std::max(max_norm2, p.squaredNorm());
+  const double max_norm = std::sqrt(static_cast<double>(max_norm2)) * (1.0 + 1e-5);
+  int starts = 0, moved_far = 0;
+  for (const Plane& truth : scene.planes) {
+    for (const double tilt_deg : {0.0, 0.05, 0.3, 2.0, 6.0}) {
+      for (const double offset : {0.0, 0.03, 0.5}) {
+        const double a = tilt_deg * M_PI / 180.0;
+        // Tilted about an axis perpendicular to the normal.
+        const Eigen::Vector3d axis = truth.n.unitOrthogonal();
+        const Eigen::Vector3d n = Eigen::AngleAxisd(a, axis) * truth.n;
+        const Plane initial{n, truth.d + offset};
+        const IpcaResult full = RefinePlaneIpca(pts, initial, 0.2, 5, 50);
+        const IpcaResult near = RefinePlaneIpca(pts, initial, 0.2, 5, 50, max_norm);
+        ++starts;
+        moved_far +=
+            (full.plane.n - initial.n).norm() * max_norm + std::abs(full.plane.d - initial.d) > 0.4
+                ? 1
+                : 0;
+        EXPECT_EQ(near.success, full.success);
+        EXPECT_EQ(near.oscillated, full.oscillated);
+        EXPECT_EQ(near.iterations, full.iterations);
+        EXPECT_EQ(near.num_inliers, full.num_inliers);
+        EXPECT_EQ(near.inlier_counts, full.inlier_counts);
+        EXPECT_EQ(near.plane.n, full.plane.n) << tilt_deg << " deg, " << offset << " m";
+        EXPECT_EQ(near.plane.d, full.plane.d) << tilt_deg << " deg, " << offset << " m";
+      }
+    }
+  }
+  // Both kinds of start occur: some refinements leave the kept band, some stay in it.
+  EXPECT_GT(moved_far, 0);
+  EXPECT_LT(moved_far, starts);
 }
 
 TEST(PpfIpca, FailsWithoutSupportOrOnLines) {

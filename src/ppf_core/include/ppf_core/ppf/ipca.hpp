@@ -33,9 +33,12 @@ bool IpcaCountsOscillate(const std::vector<int>& counts);
 
 // Refines `initial` against `points` for at most `max_iterations` PCA solves. Fails when fewer
 // than max(3, min_inliers) strict inliers remain, on oscillation, or on a degenerate (line-like)
-// inlier set. OpenMP-parallel accumulation.
+// inlier set. OpenMP-parallel accumulation for full-resolution scans. `max_norm`, if positive,
+// bounds |p| over `points`: then passes whose plane moved little visit only the points near the
+// last full pass's plane. The result does not depend on it.
 IpcaResult RefinePlaneIpca(const std::vector<Eigen::Vector3f>& points, const Plane& initial,
-                           double delta, int max_iterations, int min_inliers);
+                           double delta, int max_iterations, int min_inliers,
+                           double max_norm = 0.0);
 
 // One least-squares (PCA) plane through all `points`; empty for < 3 points or a line-like set.
 // The baseline iPCA is compared against.

@@ -109,6 +109,7 @@ class PlanePrefitter {
   // Working set: remaining points (compact copy, cache-friendly) and their input indices.
   std::vector<Eigen::Vector3f> remaining_;
   std::vector<int> remaining_index_;
+  double max_norm_ = 0.0;  // bounds |p| over the working set (TakeFinite), for RefinePlaneIpca
   std::vector<Eigen::Vector3f> next_points_;
   std::vector<int> next_index_;
   SandwichSplit split_;

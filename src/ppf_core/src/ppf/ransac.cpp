@@ -37,6 +37,27 @@ struct SoaPoints {
       z[j] = pts[i].z();
     }
   }
+  // The points of pts that SoaPoints(pts, stride) leaves out, in order (none for stride 1).
+  static SoaPoints Complement(const std::vector<Eigen::Vector3f>& pts, size_t stride) {
+    SoaPoints out;
+    const size_t m = pts.size() - (pts.size() + stride - 1) / stride;
+    out.x.reserve(m);
+    out.y.reserve(m);
+    out.z.reserve(m);
+    for (size_t i = 0, taken = 0; i < pts.size(); ++i) {
+      if (i == taken) {  // every stride-th point is the subset's
+        taken += stride;
+        continue;
+      }
+      out.x.push_back(pts[i].x());
+      out.y.push_back(pts[i].y());
+      out.z.push_back(pts[i].z());
+    }
+    return out;
+  }
+
+ private:
+  SoaPoints() = default;
 };
 
 // Pre-test: most hypotheses (three points on different surfaces) have a small fraction of the
@@ -175,9 +196,11 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
   const float delta = static_cast<float>(params.delta);
   const int min_inliers = std::max(3, params.min_inliers);
 
-  const SoaPoints soa(points, 1);
   const size_t stride = std::clamp<size_t>(n / kPretestMinSubset, 1, kPretestMaxStride);
+  // The pre-test's subset and the other points: a full count is the subset's count (which the
+  // pre-test has made already) plus the others', so no point is counted twice.
   const SoaPoints subset(points, stride > 1 ? stride : n);  // unused when stride is 1
+  const SoaPoints rest = stride > 1 ? SoaPoints::Complement(points, stride) : SoaPoints(points, 1);
   const long m = static_cast<long>(subset.x.size());
   int needed = max_iterations;
   int best_count = -1;
@@ -216,14 +239,19 @@ RansacResult FitPlaneRansac(const std::vector<Eigen::Vector3f>& points, const Ra
     int sub_count[kBatch];
     if (pretest && !parallel) CountManySoa(subset, batch, filled, delta, sub_count);
     const auto score = [&](int b) {
+      int sub = 0;
       if (pretest) {
-        const long sub = parallel ? CountInliersSoa(subset, batch[b], delta) : sub_count[b];
-        if (2 * sub * static_cast<long>(n) < reference * m) {
+        sub = parallel ? CountInliersSoa(subset, batch[b], delta) : sub_count[b];
+        if (2 * static_cast<long>(sub) * static_cast<long>(n) < reference * m) {
           batch_count[b] = kPretestRejected;
           return;
         }
+      } else if (stride > 1) {
+        sub = CountInliersSoa(subset, batch[b], delta);
       }
-      batch_count[b] = CountInliersAbove(soa, batch[b], delta, best_count);
+      // Abandoned exactly when the whole count could not exceed best_count either.
+      const int others = CountInliersAbove(rest, batch[b], delta, best_count - sub);
+      batch_count[b] = others == kAbandoned ? kAbandoned : sub + others;
     };
     if (parallel) {
 #pragma omp parallel for schedule(static)

@@ -216,9 +216,10 @@ TEST(PpfRansac, FailsBelowLeastInliers) {
 }
 
 TEST(PpfRansac, AbandonedCountsPickWhatFullCountsPick) {
-  // Full counts stop early once a hypothesis cannot beat the best (ransac.cpp); on clouds of
-  // 600-9000 points (pre-test strides 2-8, several count blocks), with planes, clutter and
-  // different seeds, the result must be exactly that of counting every hypothesis in full.
+  // Full counts add the points outside the pre-test's subset to the subset's count and stop
+  // early once a hypothesis cannot beat the best (ransac.cpp); on clouds of 600-9000 points
+  // (pre-test strides 2-8, several count blocks), with planes, clutter and different seeds, the
+  // result must be exactly that of counting every hypothesis over all points.
   int abandoned = 0;
   for (unsigned seed = 1; seed <= 6; ++seed) {
     std::vector<Eigen::Vector3f> pts;

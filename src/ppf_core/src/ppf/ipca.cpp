@@ -56,6 +56,28 @@ PPF_IPCA_CLONES void BandLevels(const Eigen::Vector3f* points, long n, double nx
   }
 }
 
+// Moments of the points with in[i] == level (every point if in is null), summed in input order.
+Moments SumLevel(const std::vector<Eigen::Vector3f>& points, const uint8_t* in, uint8_t level,
+                 const Eigen::Vector3d& ref) {
+  const long n = static_cast<long>(points.size());
+  int count = 0;
+  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
+  for (long i = 0; i < n; ++i) {
+    if (in != nullptr && in[i] != level) continue;
+    const double x = static_cast<double>(points[i].x()) - ref.x(),
+                 y = static_cast<double>(points[i].y()) - ref.y(),
+                 z = static_cast<double>(points[i].z()) - ref.z();
+    ++count;
+    sx += x, sy += y, sz += z;
+    sxx += x * x, sxy += x * y, sxz += x * z, syy += y * y, syz += y * z, szz += z * z;
+  }
+  Moments m;
+  m.count = count;
+  m.sum << sx, sy, sz;
+  m.outer << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
+  return m;
+}
+
 // Moments of the points with |n.p + d| < delta (all points if plane == nullptr).
 Moments Accumulate(const std::vector<Eigen::Vector3f>& points, const Plane* plane, double delta,
                    const Eigen::Vector3d& ref) {
@@ -63,37 +85,26 @@ Moments Accumulate(const std::vector<Eigen::Vector3f>& points, const Plane* plan
   const double nx = plane ? plane->n.x() : 0.0, ny = plane ? plane->n.y() : 0.0,
                nz = plane ? plane->n.z() : 0.0, pd = plane ? plane->d : 0.0;
   const bool all = plane == nullptr;
-  int count = 0;
-  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
-  if (n > kParallelPoints) {
-#pragma omp parallel for schedule(static) \
-    reduction(+ : count, sx, sy, sz, sxx, sxy, sxz, syy, syz, szz)
-    for (long i = 0; i < n; ++i) {
-      const double px = points[i].x(), py = points[i].y(), pz = points[i].z();
-      if (!all && !(std::abs(nx * px + ny * py + nz * pz + pd) < delta)) continue;
-      const double x = px - ref.x(), y = py - ref.y(), z = pz - ref.z();
-      ++count;
-      sx += x, sy += y, sz += z;
-      sxx += x * x, sxy += x * y, sxz += x * z, syy += y * y, syz += y * z, szz += z * z;
-    }
-  } else {
+  if (n <= kParallelPoints) {
     // Most points of a scan lie off any one plane: the band test runs over all of them in a
     // vectorised pass, and the sums, in the same order as a single pass would make them, only
     // over the points in the band.
-    std::vector<uint8_t> in;
-    if (!all) {
-      in.resize(static_cast<size_t>(n));
-      BandMask(points.data(), n, nx, ny, nz, pd, delta, in.data());
-    }
-    for (long i = 0; i < n; ++i) {
-      if (!all && in[static_cast<size_t>(i)] == 0) continue;
-      const double x = static_cast<double>(points[i].x()) - ref.x(),
-                   y = static_cast<double>(points[i].y()) - ref.y(),
-                   z = static_cast<double>(points[i].z()) - ref.z();
-      ++count;
-      sx += x, sy += y, sz += z;
-      sxx += x * x, sxy += x * y, sxz += x * z, syy += y * y, syz += y * z, szz += z * z;
-    }
+    if (all) return SumLevel(points, nullptr, 0, ref);
+    std::vector<uint8_t> in(static_cast<size_t>(n));
+    BandMask(points.data(), n, nx, ny, nz, pd, delta, in.data());
+    return SumLevel(points, in.data(), 1, ref);
+  }
+  int count = 0;
+  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
+#pragma omp parallel for schedule(static) \
+    reduction(+ : count, sx, sy, sz, sxx, sxy, sxz, syy, syz, szz)
+  for (long i = 0; i < n; ++i) {
+    const double px = points[i].x(), py = points[i].y(), pz = points[i].z();
+    if (!all && !(std::abs(nx * px + ny * py + nz * pz + pd) < delta)) continue;
+    const double x = px - ref.x(), y = py - ref.y(), z = pz - ref.z();
+    ++count;
+    sx += x, sy += y, sz += z;
+    sxx += x * x, sxy += x * y, sxz += x * z, syy += y * y, syz += y * z, szz += z * z;
   }
   Moments m;
   m.count = count;
@@ -111,28 +122,6 @@ struct Near {
   Plane plane;  // the plane they lie near
   double width = 0.0;
 };
-
-// Moments of the points with in[i] == level, summed in input order.
-Moments SumLevel(const std::vector<Eigen::Vector3f>& points, const uint8_t* in, uint8_t level,
-                 const Eigen::Vector3d& ref) {
-  const long n = static_cast<long>(points.size());
-  int count = 0;
-  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
-  for (long i = 0; i < n; ++i) {
-    if (in[i] != level) continue;
-    const double x = static_cast<double>(points[i].x()) - ref.x(),
-                 y = static_cast<double>(points[i].y()) - ref.y(),
-                 z = static_cast<double>(points[i].z()) - ref.z();
-    ++count;
-    sx += x, sy += y, sz += z;
-    sxx += x * x, sxy += x * y, sxz += x * z, syy += y * y, syz += y * z, szz += z * z;
-  }
-  Moments m;
-  m.count = count;
-  m.sum << sx, sy, sz;
-  m.outer << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
-  return m;
-}
 
 // Accumulate over all points (the serial path), also collecting `near` around `plane`.
 Moments AccumulateAndCollect(const std::vector<Eigen::Vector3f>& points, const Plane& plane,

@@ -41,17 +41,24 @@ struct SoaPoints {
   static SoaPoints Complement(const std::vector<Eigen::Vector3f>& pts, size_t stride) {
     SoaPoints out;
     const size_t m = pts.size() - (pts.size() + stride - 1) / stride;
-    out.x.reserve(m);
-    out.y.reserve(m);
-    out.z.reserve(m);
-    for (size_t i = 0, taken = 0; i < pts.size(); ++i) {
-      if (i == taken) {  // every stride-th point is the subset's
-        taken += stride;
-        continue;
+    out.x.resize(m);
+    out.y.resize(m);
+    out.z.resize(m);
+    // Sized first and written through local pointers: push_back stored each vector's end back
+    // to memory on every point.
+    float* x = out.x.data();
+    float* y = out.y.data();
+    float* z = out.z.data();
+    const Eigen::Vector3f* p = pts.data();
+    size_t j = 0;
+    for (size_t begin = 0; begin < pts.size(); begin += stride) {
+      // The points after the subset's point `begin`, up to the next one.
+      const size_t end = std::min(pts.size(), begin + stride);
+      for (size_t i = begin + 1; i < end; ++i, ++j) {
+        x[j] = p[i].x();
+        y[j] = p[i].y();
+        z[j] = p[i].z();
       }
-      out.x.push_back(pts[i].x());
-      out.y.push_back(pts[i].y());
-      out.z.push_back(pts[i].z());
     }
     return out;
   }

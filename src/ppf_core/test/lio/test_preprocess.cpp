@@ -217,5 +217,69 @@ TEST(Preprocess, ParallelGridEqualsSerialBitForBit) {
   }
 }
 
+// The grid's vector key path (AVX2) must key and filter exactly as the scalar path: points on
+// voxel faces, on both sides of the range bounds within a rounding of the squared range, beyond
+// the int32 range of its floors (the scalar fallback), times on bucket edges and absurd ones, for
+// strides and block starts that do not fall on its four-point groups.
+TEST(Preprocess, VectorGridKeysEqualScalarKeys) {
+  if (!detail::GridKeysHaveVectorPath()) GTEST_SKIP() << "no vector path on this CPU";
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  std::uniform_int_distribution<int> pick(0, 5);
+  PreprocessOptions options;
+  options.min_range = 1.0;  // squared 1.0f exactly
+  options.max_range = 2e11;
+  const double t0 = 100.0;
+  std::vector<TimedPoint> cloud;
+  int order_sensitive = 0;  // points another summation order of the squared range moves
+  for (int i = 0; i < 20000; ++i) {
+    TimedPoint tp;
+    switch (pick(rng)) {
+      case 0: {  // squared range within a few roundings of the minimum
+        Eigen::Vector3f d(u(rng), u(rng), u(rng));
+        d.normalize();
+        tp.p = d * (1.f + 6e-8f * static_cast<float>(i % 7 - 3));
+        const float x = tp.p.x(), y = tp.p.y(), z = tp.p.z();
+        order_sensitive += (x * x + (y * y + z * z) >= 1.f) != ((x * x + y * y) + z * z >= 1.f);
+        break;
+      }
+      case 1:  // on voxel faces, both signs
+        tp.p = Eigen::Vector3f(0.5f * static_cast<float>(i % 41 - 20),
+                               0.5f * static_cast<float>(i % 13 - 6), -0.5f);
+        break;
+      case 2:  // beyond 2^30 voxels on one axis, kept by the wide range bound
+        tp.p = Eigen::Vector3f(6e8f * u(rng), 3.f, 1e3f * u(rng));
+        break;
+      default:
+        tp.p = Eigen::Vector3f(60.f * u(rng), 60.f * u(rng), 5.f * u(rng));
+    }
+    tp.intensity = static_cast<float>(i % 100);
+    const int tk = i % 9;
+    tp.t = tk == 0   ? t0 + 0.05 * (i % 20)  // bucket edges
+           : tk == 1 ? t0 + 1e300            // absurd: the last bucket
+           : tk == 2 ? std::nan("")
+                     : t0 + 0.1 * std::abs(u(rng));
+    cloud.push_back(tp);
+  }
+  ASSERT_GT(order_sensitive, 20);
+  for (const size_t stride : {1, 3}) {
+    for (const size_t begin : {0, 1, 7}) {
+      const size_t end = cloud.size() / stride - 2;
+      std::vector<uint64_t> ks(end - begin + 4), kv(end - begin + 4);
+      std::vector<uint32_t> is(end - begin + 4), iv(end - begin + 4);
+      const size_t ns =
+          detail::GridKeys(false, cloud, begin, end, stride, t0, options, ks.data(), is.data());
+      const size_t nv =
+          detail::GridKeys(true, cloud, begin, end, stride, t0, options, kv.data(), iv.data());
+      ASSERT_EQ(nv, ns) << "stride " << stride << ", begin " << begin;
+      ASSERT_LT(ns, end - begin) << "some points fall out of range";
+      for (size_t j = 0; j < ns; ++j) {
+        ASSERT_EQ(iv[j], is[j]) << j;
+        ASSERT_EQ(kv[j], ks[j]) << "point " << begin + is[j];
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace ppf

@@ -104,4 +104,16 @@ class VoxelGridDownsampler {
   std::vector<uint32_t> kept_index_;
 };
 
+namespace detail {
+// The grid's range filter and voxel keys, for test_preprocess to hold the vector path to the
+// scalar one: the key and input offset (s - begin) * stride of every point in[s * stride], s in
+// [begin, end), that passes the range filter. Returns their count; keys and indices hold
+// end - begin + 4. `vector`: the path the grid takes on this CPU (AVX2 where it has it); false:
+// the scalar path.
+size_t GridKeys(bool vector, const std::vector<TimedPoint>& in, size_t begin, size_t end,
+                size_t stride, double t_begin, const PreprocessOptions& options, uint64_t* keys,
+                uint32_t* indices);
+bool GridKeysHaveVectorPath();
+}  // namespace detail
+
 }  // namespace ppf

@@ -93,17 +93,17 @@ size_t KeyBlockScalar(const KeyMaker& km, const TimedPoint* pts, size_t first, s
 #define PPF_GRID_AVX2 1
 static_assert(sizeof(TimedPoint) == 24, "the vector path loads x, y, z, intensity as 4 floats");
 
-// Four points per step: the range test in float and the three axis floors in double, as the
-// scalar path computes them (the products in float, widened exactly, the bias added in double),
-// truncated to int32 instead of int64. The two agree while |v| < 2^30 voxels; a group with a kept
-// point beyond that (or a NaN product) takes the scalar path. Only AVX2, not FMA: a fused
-// multiply-add would round the squared range differently.
 // One axis of four keys: BiasedFloor (KeyAxis) of the products, masked to the key's 20 bits.
 __attribute__((target("avx2"))) inline __m256i KeyAxis4(__m128 v, __m256d bias, __m256i mask) {
   return _mm256_and_si256(
       _mm256_cvtepi32_epi64(_mm256_cvttpd_epi32(_mm256_add_pd(_mm256_cvtps_pd(v), bias))), mask);
 }
 
+// Four points per step: the range test in float and the three axis floors in double, as the
+// scalar path computes them (the products in float, widened exactly, the bias added in double),
+// truncated to int32 instead of int64. The two agree while |v| < 2^30 voxels; a group with a kept
+// point beyond that (or a NaN product) takes the scalar path. Only AVX2, not FMA: a fused
+// multiply-add would round the squared range differently.
 __attribute__((target("avx2"))) size_t KeyBlockAvx2(const KeyMaker& km, const TimedPoint* pts,
                                                     size_t first, size_t begin, size_t end,
                                                     size_t stride, uint64_t* keys,
@@ -164,9 +164,9 @@ __attribute__((target("avx2"))) size_t KeyBlockAvx2(const KeyMaker& km, const Ti
     }
   }
   // GCC leaves the upper halves of the ymm registers set here (it does insert the vzeroupper in
-  // its target_clones copies), and the SSE code after it (the scalar tail, de-skew) then runs
-  // with a false dependency on them until some AVX library call clears them: the de-skew stage
-  // took 2.5 times as long without this.
+  // its target_clones copies), and the SSE code after it (the scalar tail, de-skew) would run
+  // with a false dependency on them until some AVX library call cleared them
+  // (docs/profiles.md, thirty-second pass).
   _mm256_zeroupper();
   return n + KeyBlockScalar(km, pts, first, s, end, stride, keys + n, indices + n);
 }

@@ -402,12 +402,11 @@ PreprocessStats VoxelGridDownsampler::RunParallel(const std::vector<TimedPoint>&
 #pragma omp barrier
     Grid& g = grids_[t];
     g.Accumulate<true>(km.t_ref, [&](auto&& add, auto&& prefetch) {
-      constexpr size_t kAhead = kPrefetchAhead;
       for (size_t c = 0; c < nt; ++c) {
         const size_t list = (c * nt + t) * cap;
         const size_t end = list + count[t * nt + c];
         for (size_t j = list; j < end; ++j) {
-          if (j + kAhead < end) prefetch(keys_[j + kAhead]);
+          if (j + kPrefetchAhead < end) prefetch(keys_[j + kPrefetchAhead]);
           const uint32_t i = kept_index_[j];
           add(keys_[j], in[i], i);
         }

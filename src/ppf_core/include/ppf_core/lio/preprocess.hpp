@@ -45,10 +45,11 @@ struct PreprocessStats {
 // (deterministic). Keeps its hash table between calls: construct once, call per scan.
 class VoxelGridDownsampler {
  public:
-  // Fewer (sampled) input points than this run serially: near it the fork and join cost about
-  // what the second thread saves, and a 16-beam sweep lies well above it (docs/profiles.md,
-  // eleventh pass).
-  static constexpr size_t kParallelPoints = 16384;
+  // Fewer (sampled) input points than this run serially. The serial path keys its points four at
+  // a time and prefetches its slots, so the parallel one's owner lists, second pass and two team
+  // wake-ups outweigh what a second thread saves below a few 10k points: a 16-beam sweep runs
+  // serially (docs/profiles.md, thirty-third pass).
+  static constexpr size_t kParallelPoints = 65536;
 
   // Returns the filtered (and, if voxel_size > 1 mm, downsampled) points of `in` in `out`.
   // t_begin: the earliest point time (DecodedScan::t_begin); time buckets count from it.
